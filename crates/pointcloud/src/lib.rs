@@ -1,0 +1,1 @@
+//! Objects, RGB-D rendering, sequential point clouds, augmentations, GOOD, MCAP datasets.

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# The project's one test command (README, .ci/run): sets up everything it needs from scratch
+# (Rust build, Python venv, maturin build of the `lgdm` module) and runs every test.
+#
+# Environment:
+#   LGDM_VENV      the Python venv to create or reuse (default: ~/.cache/lgdm/venv, outside the clone)
+#   CARGO_TARGET_DIR  shared cargo target dir (default: ./target)
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$root"
+export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$root/target}
+venv=${LGDM_VENV:-$HOME/.cache/lgdm/venv}
+
+step() { printf '\n== %s ==\n' "$*"; }
+
+step "rust: format, lint"
+cargo fmt --all --check
+cargo clippy --workspace --all-targets --release -- -D warnings
+
+step "rust: tests (release build: the contract and end-to-end tests do real work)"
+cargo test --workspace --release
+
+step "python: venv at $venv"
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+"$venv/bin/python" -m pip install -q --upgrade pip
+"$venv/bin/python" -m pip install -q -r "$root/tests/requirements-dev.txt"
+
+step "python: build and install the lgdm module (maturin)"
+(
+  export VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH"
+  maturin develop --release -q -m crates/pybridge/Cargo.toml
+)
+
+step "python: lint, tests"
+"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests python
+"$venv/bin/python" -m pytest -q crates/pybridge/tests
