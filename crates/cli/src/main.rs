@@ -4,6 +4,8 @@
 //! every subcommand lives in its own module under `cmd/` and composes library calls.
 
 mod cmd;
+#[allow(dead_code)] // used by the subcommands as they land
+mod progress;
 
 use clap::{Parser, Subcommand};
 
