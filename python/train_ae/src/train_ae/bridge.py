@@ -1,0 +1,70 @@
+"""The functions the Rust side (crates/pybridge, through pyo3) calls. Keep these stable.
+
+    load(path) -> model
+        A checkpoint written by ``python -m train_ae.train``, as a model in eval mode on the CPU.
+    input_size(model) -> int
+        The square side (pixels) the model was trained at; render or resize to it.
+    preprocess(rgb: uint8 (H, W, 3), depth: float32 (H, W) metres) -> float32 (4, H, W)
+        The exact training normalisation: [depth - mean(depth), RGB/255 - mean]. Non-finite
+        depth pixels are set to the mean of the finite ones first. No resizing.
+    infer(model, rgbd: float32 (N, 4, H, W)) -> (features, quality, cos2t, sin2t, width)
+        features float32 (N, 256), L2-normalised; the four grasp maps float32 (N, H, W).
+        Width is opening / WIDTH_SCALE_PX (pixels at this resolution); the angle is
+        atan2(sin2t, cos2t) / 2, counter-clockwise on screen from +x (see ``train_ae.grasp``).
+
+All arrays are C-contiguous numpy arrays; ``infer`` reads its input without copying when it is
+already C-contiguous float32, and the outputs share memory with the torch results.
+
+Example::
+
+    from train_ae import bridge
+    m = bridge.load("ae.pt")
+    x = bridge.preprocess(rgb, depth)[None]            # (1, 4, S, S)
+    features, quality, cos2t, sin2t, width = bridge.infer(m, x)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .checkpoint import load_checkpoint
+from .data import normalize_rgbd
+from .grasp import WIDTH_SCALE_PX
+from .model import GraspAutoencoder
+
+__all__ = ["WIDTH_SCALE_PX", "infer", "input_size", "load", "preprocess"]
+
+
+def load(path: str | Path) -> GraspAutoencoder:
+    model, _ = load_checkpoint(path)
+    return model
+
+
+def input_size(model: GraspAutoencoder) -> int:
+    return int(model.config.input_size)
+
+
+def preprocess(rgb: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    if np.asarray(rgb).dtype != np.uint8:
+        raise ValueError(f"rgb must be uint8, got {np.asarray(rgb).dtype}")
+    return np.ascontiguousarray(normalize_rgbd(rgb, depth))
+
+
+def infer(model: GraspAutoencoder, rgbd: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    arr = np.asarray(rgbd)
+    if arr.ndim != 4 or arr.shape[1] != model.config.in_channels:
+        raise ValueError(f"rgbd must be (N, {model.config.in_channels}, H, W), got {arr.shape}")
+    if arr.shape[0] == 0:
+        raise ValueError("rgbd is an empty batch")
+    x = torch.from_numpy(np.ascontiguousarray(arr, dtype=np.float32))
+    if not torch.isfinite(x).all():
+        raise ValueError("rgbd contains NaN or infinite values; preprocess() removes them")
+    model.eval()
+    with torch.inference_mode():
+        features, maps = model.forward_with_features(x)
+    q, c, s, w = (m.contiguous().numpy() for m in maps)
+    return features.contiguous().numpy(), q, c, s, w

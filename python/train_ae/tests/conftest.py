@@ -1,0 +1,17 @@
+"""Shared fixtures: a tiny synthetic Cornell-layout dataset written into a temporary directory."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from train_ae.synthetic import write_synthetic_dataset
+
+torch.set_num_threads(2)
+
+
+@pytest.fixture(scope="session")
+def fixture_dir(tmp_path_factory):
+    """4 objects (folders 01-04) x 3 images of 160x128 pixels."""
+    return write_synthetic_dataset(tmp_path_factory.mktemp("grasp"), objects=4,
+                                   images_per_object=3, width=160, height=128, seed=0)

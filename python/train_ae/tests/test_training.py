@@ -1,0 +1,169 @@
+"""Training lowers the loss, is seeded and deterministic; checkpoints round-trip with
+weights_only=True; the CLIs run end to end; the bridge functions keep their contract."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from train_ae import bridge
+from train_ae import evaluate as evaluate_cli
+from train_ae import train as train_cli
+from train_ae.checkpoint import FORMAT, load_checkpoint, save_checkpoint
+from train_ae.data import GraspDataset, find_samples, load_images, normalize_rgbd
+from train_ae.model import GraspAutoencoder, ModelConfig
+from train_ae.synthetic import write_synthetic_dataset
+from train_ae.training import evaluate_model, grasp_loss, train_model
+
+
+def _model(seed=0):
+    torch.manual_seed(seed)
+    return GraspAutoencoder(ModelConfig.preset("cpu"))
+
+
+def test_a_few_steps_lower_the_loss(fixture_dir):
+    ds = GraspDataset(find_samples(fixture_dir)[:4], 112, augment=False)
+    model = _model()
+    x, y, _ = ds.batch(list(range(4)))
+
+    def loss_now():
+        model.train()
+        with torch.no_grad():
+            return float(grasp_loss(model(x), y))
+
+    before = loss_now()
+    hist = train_model(model, ds, epochs=6, batch_size=4, lr=1e-3, seed=0)
+    after = loss_now()
+    assert hist.images == 24 and len(hist.epoch_loss) == 6
+    print(f"loss on a fixed batch: {before:.4f} -> {after:.4f}")
+    assert after < 0.5 * before, (before, after)
+    assert hist.epoch_loss[-1] < hist.epoch_loss[0]
+
+
+def test_same_seed_same_weights(fixture_dir):
+    tiny = ModelConfig(name="tiny", input_size=48, channels=8, encoder_res_blocks=1,
+                       bottleneck_res_blocks=1)
+    ds = GraspDataset(find_samples(fixture_dir)[:6], tiny.input_size, augment=True, seed=1)
+    states = []
+    for _ in range(2):
+        torch.manual_seed(7)
+        model = GraspAutoencoder(tiny)
+        train_model(model, ds, epochs=2, batch_size=3, seed=1)
+        states.append(model.state_dict())
+    for k in states[0]:
+        assert torch.equal(states[0][k], states[1][k]), k
+
+
+def test_checkpoint_round_trip_with_weights_only(fixture_dir, tmp_path):
+    ds = GraspDataset(find_samples(fixture_dir)[:4], 112, augment=False)
+    model = _model()
+    train_model(model, ds, epochs=1, batch_size=4, max_steps=1)  # non-trivial BN statistics
+    model.eval()
+    path = tmp_path / "ae.pt"
+    save_checkpoint(path, model, {"heldout": {"n": 3, "objects": ["02"]}})
+    raw = torch.load(path, weights_only=True)
+    assert raw["format"] == FORMAT and raw["config"] == model.config.to_dict()
+    assert not (tmp_path / "ae.pt.tmp").exists()
+    loaded, ckpt = load_checkpoint(path)
+    assert not loaded.training
+    assert ckpt["metrics"]["heldout"]["objects"] == ["02"]
+    x, _, _ = ds.batch([0, 1])
+    with torch.inference_mode():
+        fa, ma = model.forward_with_features(x)
+        fb, mb = loaded.forward_with_features(x)
+    assert torch.equal(fa, fb)
+    for a, b in zip(ma, mb, strict=True):
+        assert torch.equal(a, b)
+
+
+def test_not_a_checkpoint_is_a_clear_error(tmp_path):
+    p = tmp_path / "x.pt"
+    p.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="not a readable train_ae checkpoint"):
+        load_checkpoint(p)
+    torch.save({"state_dict": {}}, p)
+    with pytest.raises(ValueError, match="format key"):
+        load_checkpoint(p)
+
+
+def test_train_and_evaluate_commands(fixture_dir, tmp_path, capsys):
+    out = tmp_path / "run" / "ae.pt"
+    argv = ["--data", str(fixture_dir), "--config", "cpu", "--epochs", "1", "--out", str(out),
+            "--batch-size", "4", "--val-fraction", "0.25", "--seed", "3", "--quiet"]
+    assert train_cli.main(argv) == 0
+    err = capsys.readouterr().err
+    assert "held-out objects, final epoch 1: rectangle metric" in err and "n = 3" in err
+    _, ckpt = load_checkpoint(out)
+    held = ckpt["metrics"]["heldout"]
+    assert held["n"] == 3 and len(held["objects"]) == 1
+    assert 0.0 <= held["ci95"][0] <= held["ci95"][1] <= 1.0
+    assert set(ckpt["metrics"]["training"]["train_objects"]).isdisjoint(held["objects"])
+
+    assert evaluate_cli.main(["--data", str(fixture_dir), "--ckpt", str(out), "--quiet"]) == 0
+    assert "n = 3" in capsys.readouterr().err
+    assert evaluate_cli.main(["--data", str(fixture_dir), "--ckpt", str(out), "--all",
+                              "--quiet"]) == 0
+    assert "4 objects" in capsys.readouterr().err
+    assert train_cli.main([*argv[:1], str(tmp_path / "missing"), *argv[2:]]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_evaluation_of_perfect_maps_scores_everything(fixture_dir):
+    """The metric pipeline itself, with a stand-in network that returns the label maps."""
+    ds = GraspDataset(find_samples(fixture_dir), 112, augment=False)
+    targets = [torch.from_numpy(ds.item(i)[1]) for i in range(len(ds))]
+
+    class Oracle(torch.nn.Module):
+        seen = 0
+
+        def forward(self, x):
+            y = torch.stack(targets[self.seen:self.seen + len(x)])
+            self.seen += len(x)
+            return tuple(y[:, k] for k in range(4))
+
+    result = evaluate_model(Oracle(), ds, batch_size=5)
+    assert result["n"] == len(ds) == result["correct"]
+    assert result["ci95"][1] == 1.0
+
+
+def test_bridge_contract(fixture_dir, tmp_path):
+    model = _model()
+    path = tmp_path / "ae.pt"
+    save_checkpoint(path, model.eval(), {})
+    m = bridge.load(path)
+    assert bridge.input_size(m) == 112
+    rgb = np.zeros((112, 112, 3), np.uint8)
+    rgb[30:60, 40:80] = (200, 40, 40)
+    depth = np.full((112, 112), 0.7, np.float32)
+    depth[30:60, 40:80] = 0.65
+    x = bridge.preprocess(rgb, depth)
+    assert x.shape == (4, 112, 112) and x.dtype == np.float32 and x.flags.c_contiguous
+    np.testing.assert_array_equal(x, normalize_rgbd(rgb, depth))
+    batch = np.stack([x, x[:, ::-1, :]])
+    features, q, c, s, w = bridge.infer(m, batch)
+    assert features.shape == (2, 256) and features.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(features, axis=1), 1.0, atol=1e-5)
+    for a in (q, c, s, w):
+        assert a.shape == (2, 112, 112) and a.dtype == np.float32
+    # Same as running the model directly.
+    with torch.inference_mode():
+        f2, maps = m.forward_with_features(torch.from_numpy(batch.copy()))
+    np.testing.assert_array_equal(features, f2.numpy())
+    np.testing.assert_array_equal(w, maps.width.numpy())
+    with pytest.raises(ValueError, match="uint8"):
+        bridge.preprocess(rgb.astype(np.float32), depth)
+    with pytest.raises(ValueError, match=r"\(N, 4, H, W\)"):
+        bridge.infer(m, x)
+    with pytest.raises(ValueError, match="NaN"):
+        bridge.infer(m, np.full((1, 4, 112, 112), np.nan, np.float32))
+
+
+def test_bridge_preprocess_matches_training_input(tmp_path):
+    """At the model's input size, crop and resize are the identity: same input as training."""
+    root = write_synthetic_dataset(tmp_path, objects=1, images_per_object=1, width=112,
+                                   height=112)
+    (s,) = find_samples(root)
+    rgb, depth = load_images(s)
+    ds = GraspDataset([s], 112, augment=False)
+    np.testing.assert_allclose(bridge.preprocess(rgb, depth), ds.item(0)[0], atol=1e-6)
