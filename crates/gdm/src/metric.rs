@@ -1,0 +1,602 @@
+//! Distance metrics between feature vectors, and the best-matching-node search that uses them.
+//!
+//! The search is the hot loop of the whole crate: it scans the contiguous node buffer of a
+//! [`GammaGwr`](crate::GammaGwr), accumulates in 16 lanes so that the compiler vectorises it,
+//! allocates nothing, and abandons a node as soon as a lower bound of its distance exceeds the
+//! current second-best (training) or best (prediction) distance. Abandoning is exact: it never
+//! changes which nodes are found.
+//!
+//! ```
+//! use lgdm_gdm::metric::{self, Metric};
+//! let a = [1.0, 2.0, 3.0];
+//! let b = [2.0, 0.0, 3.0];
+//! assert_eq!(metric::manhattan(&a, &b), 3.0);
+//! assert_eq!(Metric::SquaredEuclidean.distance(&a, &b), 5.0);
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::ConfigError;
+
+/// Distance between an input (or context) vector and a node's vector.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Metric {
+    /// Σ|a − b| (default; the paper's choice).
+    #[default]
+    Manhattan,
+    /// √Σ(a − b)².
+    Euclidean,
+    /// Σ(a − b)².
+    SquaredEuclidean,
+    /// (Σ|a − b|^p)^(1/p), p ≥ 1.
+    Minkowski {
+        /// The power p ≥ 1.
+        p: f32,
+    },
+    /// 1 − a·b / (|a| |b|); 0 between two zero vectors, 1 between a zero and a non-zero vector.
+    Cosine,
+    /// Diagonal Mahalanobis distance √Σ(a − b)²/σ², with the per-feature variance σ² a running
+    /// estimate over each memory's training inputs (plus 1e-6; unit variance before the second
+    /// input). A full covariance would cost D² per node and is not offered.
+    Mahalanobis,
+}
+
+impl Metric {
+    /// Checks the metric's parameters (Minkowski needs a finite p ≥ 1).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        match *self {
+            Metric::Minkowski { p } if !(p.is_finite() && p >= 1.0) => Err(ConfigError::invalid(
+                "metric.p",
+                format!("Minkowski power {p} must be finite and ≥ 1"),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Distance between `a` and `b` (equal lengths). Mahalanobis here uses unit variance, i.e.
+    /// equals Euclidean; see [`mahalanobis_diagonal`] for explicit variances.
+    pub fn distance(&self, a: &[f32], b: &[f32]) -> f32 {
+        match *self {
+            Metric::Manhattan => manhattan(a, b),
+            Metric::Euclidean | Metric::Mahalanobis => euclidean(a, b),
+            Metric::SquaredEuclidean => squared_euclidean(a, b),
+            Metric::Minkowski { p } => minkowski(a, b, p),
+            Metric::Cosine => cosine(a, b),
+        }
+    }
+}
+
+const LANES: usize = 16;
+
+/// Σ|a − b|.
+pub fn manhattan(a: &[f32], b: &[f32]) -> f32 {
+    sum_l1(a, b)
+}
+
+/// √Σ(a − b)².
+pub fn euclidean(a: &[f32], b: &[f32]) -> f32 {
+    sum_sq(a, b).sqrt()
+}
+
+/// Σ(a − b)².
+pub fn squared_euclidean(a: &[f32], b: &[f32]) -> f32 {
+    sum_sq(a, b)
+}
+
+/// (Σ|a − b|^p)^(1/p).
+pub fn minkowski(a: &[f32], b: &[f32], p: f32) -> f32 {
+    sum_lp(a, b, p).powf(1.0 / p)
+}
+
+/// 1 − a·b / (|a| |b|); 0 if both are zero vectors, 1 if exactly one is.
+pub fn cosine(a: &[f32], b: &[f32]) -> f32 {
+    let (dot, na, nb) = dot_norms(a, b);
+    cosine_from(dot, na, nb)
+}
+
+/// √Σ(a − b)² · inv_var, with `inv_var` the per-feature inverse variances.
+pub fn mahalanobis_diagonal(a: &[f32], b: &[f32], inv_var: &[f32]) -> f32 {
+    sum_sq_w(a, b, inv_var).sqrt()
+}
+
+fn cosine_from(dot: f32, na: f32, nb: f32) -> f32 {
+    if na == 0.0 && nb == 0.0 {
+        0.0
+    } else if na == 0.0 || nb == 0.0 {
+        1.0
+    } else {
+        (1.0 - dot / (na.sqrt() * nb.sqrt())).max(0.0)
+    }
+}
+
+#[inline(always)]
+fn reduce(acc: [f32; LANES]) -> f32 {
+    // Fixed pairwise order: deterministic and vectorisable.
+    let mut v = acc;
+    let mut w = LANES / 2;
+    while w > 0 {
+        for i in 0..w {
+            v[i] += v[i + w];
+        }
+        w /= 2;
+    }
+    v[0]
+}
+
+#[inline(always)]
+fn sum_l1(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let ca = a.chunks_exact(LANES);
+    let cb = b.chunks_exact(LANES);
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..LANES {
+            acc[i] += (x[i] - y[i]).abs();
+        }
+    }
+    let mut s = reduce(acc);
+    for (x, y) in ra.iter().zip(rb) {
+        s += (x - y).abs();
+    }
+    s
+}
+
+#[inline(always)]
+fn sum_sq(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let ca = a.chunks_exact(LANES);
+    let cb = b.chunks_exact(LANES);
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..LANES {
+            let d = x[i] - y[i];
+            acc[i] += d * d;
+        }
+    }
+    let mut s = reduce(acc);
+    for (x, y) in ra.iter().zip(rb) {
+        s += (x - y) * (x - y);
+    }
+    s
+}
+
+#[inline(always)]
+fn sum_sq_w(a: &[f32], b: &[f32], w: &[f32]) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let ca = a.chunks_exact(LANES);
+    let cb = b.chunks_exact(LANES);
+    let cw = w.chunks_exact(LANES);
+    let (ra, rb, rw) = (ca.remainder(), cb.remainder(), cw.remainder());
+    for ((x, y), z) in ca.zip(cb).zip(cw) {
+        for i in 0..LANES {
+            let d = x[i] - y[i];
+            acc[i] += d * d * z[i];
+        }
+    }
+    let mut s = reduce(acc);
+    for ((x, y), z) in ra.iter().zip(rb).zip(rw) {
+        s += (x - y) * (x - y) * z;
+    }
+    s
+}
+
+#[inline(always)]
+fn sum_lp(a: &[f32], b: &[f32], p: f32) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs().powf(p)).sum()
+}
+
+#[inline(always)]
+fn dot_norms(a: &[f32], b: &[f32]) -> (f32, f32, f32) {
+    let mut d = [0.0f32; LANES];
+    let mut na = [0.0f32; LANES];
+    let mut nb = [0.0f32; LANES];
+    let ca = a.chunks_exact(LANES);
+    let cb = b.chunks_exact(LANES);
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..LANES {
+            d[i] += x[i] * y[i];
+            na[i] += x[i] * x[i];
+            nb[i] += y[i] * y[i];
+        }
+    }
+    let (mut sd, mut sa, mut sb) = (reduce(d), reduce(na), reduce(nb));
+    for (x, y) in ra.iter().zip(rb) {
+        sd += x * y;
+        sa += x * x;
+        sb += y * y;
+    }
+    (sd, sa, sb)
+}
+
+/// Result of a best-matching-node search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Matches {
+    /// Best node and its distance.
+    pub best: (usize, f32),
+    /// Second-best node and its distance, if searched for and there are ≥ 2 nodes.
+    pub second: Option<(usize, f32)>,
+}
+
+/// Where to search: the node buffer of a network and the layout of its blocks.
+pub(crate) struct NodeBuffer<'a> {
+    /// n × depth × dim floats.
+    pub weights: &'a [f32],
+    /// Input dimension D.
+    pub dim: usize,
+    /// Blocks per node (K + 1).
+    pub depth: usize,
+}
+
+/// A monotone per-element accumulator: the distance of one block is `finish(Σ accumulate)`, and
+/// `finish` is non-decreasing, so partial sums give lower bounds.
+trait Accumulator {
+    fn accumulate(&self, a: &[f32], b: &[f32], offset: usize) -> f32;
+    fn finish(&self, s: f32) -> f32;
+}
+
+struct L1;
+impl Accumulator for L1 {
+    #[inline(always)]
+    fn accumulate(&self, a: &[f32], b: &[f32], _: usize) -> f32 {
+        sum_l1(a, b)
+    }
+    #[inline(always)]
+    fn finish(&self, s: f32) -> f32 {
+        s
+    }
+}
+
+struct L2;
+impl Accumulator for L2 {
+    #[inline(always)]
+    fn accumulate(&self, a: &[f32], b: &[f32], _: usize) -> f32 {
+        sum_sq(a, b)
+    }
+    #[inline(always)]
+    fn finish(&self, s: f32) -> f32 {
+        s.sqrt()
+    }
+}
+
+struct L2Sq;
+impl Accumulator for L2Sq {
+    #[inline(always)]
+    fn accumulate(&self, a: &[f32], b: &[f32], _: usize) -> f32 {
+        sum_sq(a, b)
+    }
+    #[inline(always)]
+    fn finish(&self, s: f32) -> f32 {
+        s
+    }
+}
+
+struct Lp(f32);
+impl Accumulator for Lp {
+    #[inline(always)]
+    fn accumulate(&self, a: &[f32], b: &[f32], _: usize) -> f32 {
+        sum_lp(a, b, self.0)
+    }
+    #[inline(always)]
+    fn finish(&self, s: f32) -> f32 {
+        s.powf(1.0 / self.0)
+    }
+}
+
+struct Maha<'a>(&'a [f32]);
+impl Accumulator for Maha<'_> {
+    #[inline(always)]
+    fn accumulate(&self, a: &[f32], b: &[f32], offset: usize) -> f32 {
+        sum_sq_w(a, b, &self.0[offset..offset + a.len()])
+    }
+    #[inline(always)]
+    fn finish(&self, s: f32) -> f32 {
+        s.sqrt()
+    }
+}
+
+/// Elements between two early-abandon checks inside a block.
+const CHECK: usize = 128;
+
+/// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index.
+#[inline(always)]
+fn before(d: f32, i: usize, e: f32, j: usize) -> bool {
+    d < e || (d == e && i < j)
+}
+
+#[inline(always)]
+fn search_monotone<A: Accumulator>(
+    acc: &A,
+    buf: &NodeBuffer<'_>,
+    query: &[f32],
+    alphas: &[f32],
+    want_second: bool,
+) -> Option<Matches> {
+    let dim = buf.dim;
+    let stride = buf.depth * dim;
+    let n = buf.weights.len() / stride.max(1);
+    if n == 0 {
+        return None;
+    }
+    let mut best = (usize::MAX, f32::INFINITY);
+    let mut second = (usize::MAX, f32::INFINITY);
+    'nodes: for j in 0..n {
+        let node = &buf.weights[j * stride..(j + 1) * stride];
+        let bound = if want_second { second.1 } else { best.1 };
+        let mut total = 0.0f32;
+        for (k, &alpha) in alphas.iter().enumerate() {
+            let w = &node[k * dim..(k + 1) * dim];
+            let q = &query[k * dim..(k + 1) * dim];
+            let mut s = 0.0f32;
+            let mut off = 0;
+            while off < dim {
+                let end = (off + CHECK).min(dim);
+                s += acc.accumulate(&q[off..end], &w[off..end], off);
+                off = end;
+                if total + alpha * acc.finish(s) > bound {
+                    continue 'nodes;
+                }
+            }
+            total += alpha * acc.finish(s);
+        }
+        if before(total, j, best.1, best.0) {
+            second = best;
+            best = (j, total);
+        } else if want_second && before(total, j, second.1, second.0) {
+            second = (j, total);
+        }
+    }
+    Some(Matches {
+        best,
+        second: (want_second && second.0 != usize::MAX).then_some(second),
+    })
+}
+
+fn search_cosine(
+    buf: &NodeBuffer<'_>,
+    query: &[f32],
+    alphas: &[f32],
+    want_second: bool,
+) -> Option<Matches> {
+    let dim = buf.dim;
+    let stride = buf.depth * dim;
+    let n = buf.weights.len() / stride.max(1);
+    if n == 0 {
+        return None;
+    }
+    let mut best = (usize::MAX, f32::INFINITY);
+    let mut second = (usize::MAX, f32::INFINITY);
+    for j in 0..n {
+        let node = &buf.weights[j * stride..(j + 1) * stride];
+        let mut total = 0.0f32;
+        for (k, &alpha) in alphas.iter().enumerate() {
+            total += alpha
+                * cosine(
+                    &query[k * dim..(k + 1) * dim],
+                    &node[k * dim..(k + 1) * dim],
+                );
+        }
+        if before(total, j, best.1, best.0) {
+            second = best;
+            best = (j, total);
+        } else if want_second && before(total, j, second.1, second.0) {
+            second = (j, total);
+        }
+    }
+    Some(Matches {
+        best,
+        second: (want_second && second.0 != usize::MAX).then_some(second),
+    })
+}
+
+/// Finds the node(s) minimising d_j = Σ_k α_k · dist(query_k, node_{j,k}) over the first
+/// `alphas.len()` blocks. `inv_var` is used by Mahalanobis only.
+pub(crate) fn search(
+    metric: Metric,
+    inv_var: &[f32],
+    buf: &NodeBuffer<'_>,
+    query: &[f32],
+    alphas: &[f32],
+    want_second: bool,
+) -> Option<Matches> {
+    debug_assert!(alphas.len() <= buf.depth);
+    debug_assert!(query.len() >= alphas.len() * buf.dim);
+    match metric {
+        Metric::Manhattan => search_monotone(&L1, buf, query, alphas, want_second),
+        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, want_second),
+        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, want_second),
+        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, want_second),
+        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, want_second),
+        Metric::Cosine => search_cosine(buf, query, alphas, want_second),
+    }
+}
+
+/// The distance of one node (all `alphas.len()` blocks), computed block by block.
+#[cfg(test)]
+pub(crate) fn node_distance(
+    metric: Metric,
+    inv_var: &[f32],
+    node: &[f32],
+    query: &[f32],
+    dim: usize,
+    alphas: &[f32],
+) -> f32 {
+    let mut total = 0.0f32;
+    for (k, &alpha) in alphas.iter().enumerate() {
+        let w = &node[k * dim..(k + 1) * dim];
+        let q = &query[k * dim..(k + 1) * dim];
+        let d = match metric {
+            Metric::Manhattan => manhattan(q, w),
+            Metric::Euclidean => euclidean(q, w),
+            Metric::SquaredEuclidean => squared_euclidean(q, w),
+            Metric::Minkowski { p } => minkowski(q, w, p),
+            Metric::Mahalanobis => mahalanobis_diagonal(q, w, inv_var),
+            Metric::Cosine => cosine(q, w),
+        };
+        total += alpha * d;
+    }
+    total
+}
+
+/// Running per-feature mean and variance (Welford, f64) for the Mahalanobis metric.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RunningStats {
+    pub count: u64,
+    pub mean: Vec<f64>,
+    pub m2: Vec<f64>,
+    /// 1 / (variance + 1e-6), or 1 before the second observation.
+    pub inv_var: Vec<f32>,
+}
+
+impl RunningStats {
+    pub const VARIANCE_FLOOR: f64 = 1e-6;
+
+    pub fn new(dim: usize) -> Self {
+        RunningStats {
+            count: 0,
+            mean: vec![0.0; dim],
+            m2: vec![0.0; dim],
+            inv_var: vec![1.0; dim],
+        }
+    }
+
+    pub fn observe(&mut self, x: &[f32]) {
+        self.count += 1;
+        let n = self.count as f64;
+        for ((m, m2), &v) in self.mean.iter_mut().zip(self.m2.iter_mut()).zip(x) {
+            let v = v as f64;
+            let delta = v - *m;
+            *m += delta / n;
+            *m2 += delta * (v - *m);
+        }
+        self.refresh();
+    }
+
+    pub fn refresh(&mut self) {
+        if self.count < 2 {
+            self.inv_var.iter_mut().for_each(|v| *v = 1.0);
+            return;
+        }
+        let denom = (self.count - 1) as f64;
+        for (iv, m2) in self.inv_var.iter_mut().zip(&self.m2) {
+            *iv = (1.0 / (m2 / denom + Self::VARIANCE_FLOOR)) as f32;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() <= 1e-5 * (1.0 + b.abs())
+    }
+
+    #[test]
+    fn metrics_match_hand_computed_values() {
+        let a = [1.0, -2.0, 3.0, 0.5];
+        let b = [4.0, 2.0, 3.0, -0.5];
+        // differences: -3, -4, 0, 1
+        assert!(close(manhattan(&a, &b), 8.0));
+        assert!(close(squared_euclidean(&a, &b), 26.0));
+        assert!(close(euclidean(&a, &b), 26f32.sqrt()));
+        assert!(close(
+            minkowski(&a, &b, 3.0),
+            (27.0f32 + 64.0 + 1.0).powf(1.0 / 3.0)
+        ));
+        assert!(close(minkowski(&a, &b, 1.0), 8.0));
+        assert!(close(minkowski(&a, &b, 2.0), 26f32.sqrt()));
+        // a·b = 4 - 4 + 9 - 0.25 = 8.75; |a|² = 14.25; |b|² = 29.25
+        let expect = 1.0 - 8.75 / (14.25f32.sqrt() * 29.25f32.sqrt());
+        assert!(close(cosine(&a, &b), expect));
+        assert!(close(cosine(&a, &a), 0.0));
+        assert!(close(cosine(&[1.0, 0.0], &[-1.0, 0.0]), 2.0));
+        assert_eq!(cosine(&[0.0, 0.0], &[0.0, 0.0]), 0.0);
+        assert_eq!(cosine(&[0.0, 0.0], &[1.0, 0.0]), 1.0);
+        let iv = [1.0, 0.25, 2.0, 4.0];
+        // 9·1 + 16·0.25 + 0 + 1·4 = 17
+        assert!(close(mahalanobis_diagonal(&a, &b, &iv), 17f32.sqrt()));
+        assert_eq!(Metric::Mahalanobis.distance(&a, &b), euclidean(&a, &b));
+    }
+
+    #[test]
+    fn lane_kernels_agree_with_naive_sums_on_long_vectors() {
+        let a: Vec<f32> = (0..675).map(|i| ((i * 37) % 101) as f32 * 0.01).collect();
+        let b: Vec<f32> = (0..675).map(|i| ((i * 53) % 97) as f32 * 0.01).collect();
+        let l1: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).abs() as f64).sum();
+        let l2: f64 = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| ((x - y) * (x - y)) as f64)
+            .sum();
+        assert!((manhattan(&a, &b) as f64 - l1).abs() < 1e-3 * l1);
+        assert!((squared_euclidean(&a, &b) as f64 - l2).abs() < 1e-3 * l2);
+    }
+
+    #[test]
+    fn running_stats_give_inverse_variance() {
+        let mut s = RunningStats::new(2);
+        s.observe(&[1.0, 5.0]);
+        assert_eq!(s.inv_var, vec![1.0, 1.0]);
+        s.observe(&[3.0, 5.0]);
+        s.observe(&[5.0, 5.0]);
+        // variance of (1, 3, 5) = 4; of (5, 5, 5) = 0
+        assert!(close(s.inv_var[0], 1.0 / (4.0 + 1e-6)));
+        assert!(close(s.inv_var[1], 1e6));
+    }
+
+    fn brute(metric: Metric, buf: &NodeBuffer<'_>, q: &[f32], alphas: &[f32]) -> Vec<(f32, usize)> {
+        let stride = buf.depth * buf.dim;
+        let iv = vec![0.5; buf.dim];
+        let mut all: Vec<(f32, usize)> = (0..buf.weights.len() / stride)
+            .map(|j| {
+                let node = &buf.weights[j * stride..(j + 1) * stride];
+                (node_distance(metric, &iv, node, q, buf.dim, alphas), j)
+            })
+            .collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        all
+    }
+
+    #[test]
+    fn early_abandon_search_equals_brute_force() {
+        let dim = 300;
+        let depth = 3;
+        let n = 40;
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let weights: Vec<f32> = (0..n * depth * dim).map(|_| next()).collect();
+        let q: Vec<f32> = (0..depth * dim).map(|_| next()).collect();
+        let buf = NodeBuffer {
+            weights: &weights,
+            dim,
+            depth,
+        };
+        let iv = vec![0.5; dim];
+        for metric in [
+            Metric::Manhattan,
+            Metric::Euclidean,
+            Metric::SquaredEuclidean,
+            Metric::Minkowski { p: 3.0 },
+            Metric::Cosine,
+            Metric::Mahalanobis,
+        ] {
+            for alphas in [&[0.665f32, 0.245, 0.090][..], &[1.0][..]] {
+                let m = search(metric, &iv, &buf, &q, alphas, true).unwrap();
+                let want = brute(metric, &buf, &q, alphas);
+                assert_eq!(m.best.0, want[0].1, "{metric:?}");
+                assert!(close(m.best.1, want[0].0), "{metric:?}");
+                assert_eq!(m.second.unwrap().0, want[1].1, "{metric:?}");
+                let one = search(metric, &iv, &buf, &q, alphas, false).unwrap();
+                assert_eq!(one.best.0, want[0].1);
+                assert!(one.second.is_none());
+            }
+        }
+    }
+}
