@@ -812,3 +812,434 @@ impl GammaGwr {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(k: usize) -> MemoryParams {
+        MemoryParams {
+            context_depth: k,
+            ..MemoryParams::default()
+        }
+    }
+
+    /// A K = 0, D = 1 network built by hand: nodes (weight, habituation), edges (i, j, age).
+    fn manual(p: MemoryParams, nodes: &[(f32, f32)], edges: &[(usize, usize, u32)]) -> GammaGwr {
+        let mut net = GammaGwr::new(p, Metric::Manhattan, 1, 1).unwrap();
+        for &(w, h) in nodes {
+            net.weights.push(w);
+            net.finish_push(&[None]);
+            *net.habituation.last_mut().unwrap() = h;
+        }
+        for &(i, j, age) in edges {
+            net.connect(i, j);
+            net.set_age(i, j, age);
+        }
+        net.check_consistency().unwrap();
+        net
+    }
+
+    #[test]
+    fn habituation_converges_to_one_minus_inverse_kappa() {
+        let p = params(0);
+        let kappa = p.kappa;
+        let mut net = manual(p, &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
+        let mut last = 1.0;
+        for _ in 0..200 {
+            net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+            let h = net.habituation(0);
+            assert!(
+                h > 0.0 && h <= last,
+                "habituation must fall monotonically: {h} after {last}"
+            );
+            last = h;
+        }
+        let limit = 1.0 - 1.0 / kappa;
+        assert!((last - limit).abs() < 1e-5, "h = {last}, expected {limit}");
+        // The neighbour habituates too, more slowly (τ_n < τ_b), towards the same limit.
+        assert!(net.habituation(1) < 1.0);
+        assert!((net.habituation(1) - limit).abs() < 1e-3);
+        // One step from h = 1 with τ_b = 0.3: 1 + 0.3·1.05·0 − 0.3 = 0.7.
+        let mut fresh = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
+        fresh.train_step(&[0.0], &[None], Supervision::Unsupervised);
+        assert!((fresh.habituation(0) - 0.7).abs() < 1e-6);
+        assert!((fresh.habituation(1) - 0.9).abs() < 1e-6);
+    }
+
+    #[test]
+    fn first_two_samples_become_the_first_two_nodes() {
+        let mut net = GammaGwr::new(params(1), Metric::Manhattan, 2, 2).unwrap();
+        let a = net.train_step(&[1.0, 2.0], &[Some(4), None], Supervision::Unsupervised);
+        assert_eq!((a.node, a.inserted, a.best), (0, true, None));
+        let b = net.train_step(&[3.0, 4.0], &[Some(5), Some(9)], Supervision::Unsupervised);
+        assert_eq!((b.node, b.inserted, b.best), (1, true, None));
+        assert_eq!(net.weight(0), &[1.0, 2.0]);
+        assert_eq!(net.weight(1), &[3.0, 4.0]);
+        assert_eq!(net.context(0, 1), &[0.0, 0.0]);
+        // C_1 = β·c_{0,1} + (1 − β)·w_0 = 0.6·(1, 2)
+        assert!((net.context(1, 1)[0] - 0.6).abs() < 1e-6);
+        assert!((net.context(1, 1)[1] - 1.2).abs() < 1e-6);
+        assert_eq!(net.edge_age(0, 1), Some(0));
+        assert_eq!(net.synapse(0, 1), 1);
+        assert_eq!(net.label(0, 0), Some(4));
+        assert_eq!(net.label(1, 0), None);
+        assert_eq!(net.label(1, 1), Some(9));
+        assert_eq!((net.habituation(0), net.habituation(1)), (1.0, 1.0));
+    }
+
+    #[test]
+    fn insertion_needs_low_activity_low_habituation_and_room() {
+        // Far input (a = e^-10 < a_T) but b is not habituated (h = 1 ≥ h_T): update, no insertion.
+        let mut net = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
+        let out = net.train_step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
+        assert!(!out.inserted);
+        assert_eq!(net.len(), 2);
+
+        // Habituated b (h = 0.05 < h_T) and far input: insertion between b and x.
+        let mut net = manual(params(0), &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
+        let out = net.train_step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
+        assert!(out.inserted);
+        assert_eq!(out.best.unwrap().0, 0);
+        assert_eq!(out.node, 2);
+        assert_eq!(net.weight(2), &[-5.0]);
+        assert_eq!(net.habituation(2), 1.0);
+        assert_eq!(net.label(0, 2), Some(3));
+        assert_eq!(net.histogram(0, 2).get(3), 1.0);
+        assert_eq!(net.edge_age(0, 2), Some(0));
+        assert_eq!(net.edge_age(1, 2), Some(0));
+        assert_eq!(net.edge_age(0, 1), None, "b–s is removed on insertion");
+        assert_eq!(net.weight(0), &[0.0], "b is not moved on insertion");
+        net.check_consistency().unwrap();
+
+        // Habituated b but near input (a = e^-0.1 ≥ a_T = 0.5): update.
+        let mut net = manual(params(0), &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
+        assert!(
+            !net.train_step(&[0.1], &[None], Supervision::Unsupervised)
+                .inserted
+        );
+
+        // Threshold is strict: a just above a_T does not insert, just below does.
+        let a_t = 0.5f32;
+        let d = -(a_t.ln());
+        for (x, inserts) in [(d * 0.999, false), (d * 1.001, true)] {
+            let mut net = manual(params(0), &[(0.0, 0.05), (5.0, 1.0)], &[(0, 1, 0)]);
+            let out = net.train_step(&[-x], &[None], Supervision::Unsupervised);
+            assert_eq!(out.inserted, inserts, "x = {x}");
+        }
+
+        // Capacity: no insertion at max_nodes.
+        let capped = MemoryParams {
+            max_nodes: Some(2),
+            ..params(0)
+        };
+        let mut net = manual(capped, &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
+        assert!(
+            !net.train_step(&[-10.0], &[None], Supervision::Unsupervised)
+                .inserted
+        );
+        assert_eq!(net.len(), 2);
+    }
+
+    #[test]
+    fn update_moves_b_and_neighbours_by_their_rates() {
+        let p = params(0);
+        let (eb, en) = (p.epsilon_b, p.epsilon_n);
+        let mut net = manual(
+            p,
+            &[(0.0, 1.0), (1.0, 1.0), (2.0, 1.0)],
+            &[(0, 1, 0), (0, 2, 0)],
+        );
+        net.train_step(&[-0.5], &[None], Supervision::Unsupervised);
+        // b = 0: h 1 → 0.7, then w += ε_b·0.7·(−0.5 − 0).
+        assert!((net.weight(0)[0] - eb * 0.7 * -0.5).abs() < 1e-6);
+        // neighbours move with their own (pre-habituation) h = 1.
+        assert!((net.weight(1)[0] - (1.0 + en * (-0.5 - 1.0))).abs() < 1e-6);
+        assert!((net.weight(2)[0] - (2.0 + en * (-0.5 - 2.0))).abs() < 1e-6);
+    }
+
+    /// b = node 0 fires max_age + 1 times with s = node 1; node 2 is a well-trained neighbour
+    /// (h ≤ N_T), node 3 a poorly trained one (h > N_T).
+    fn aging_run(
+        removal_threshold: f32,
+    ) -> (GammaGwr, Vec<(Option<u32>, Option<u32>, Option<u32>)>) {
+        let p = MemoryParams {
+            max_age: 3,
+            removal_threshold,
+            ..params(0)
+        };
+        let mut net = manual(
+            p,
+            &[(0.0, 1.0), (0.1, 1.0), (5.0, 0.05), (-5.0, 1.0)],
+            &[(0, 2, 0), (0, 3, 0)],
+        );
+        let mut ages = Vec::new();
+        for _ in 0..5 {
+            let out = net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+            assert_eq!(out.best.unwrap().0, 0);
+            net.check_consistency().unwrap();
+            ages.push((net.edge_age(0, 1), net.edge_age(0, 2), net.edge_age(0, 3)));
+        }
+        (net, ages)
+    }
+
+    #[test]
+    fn edges_are_created_aged_per_node_and_removed_plain_gwr_with_nt_one() {
+        let (net, ages) = aging_run(1.0);
+        // b–s created at step 1 and refreshed every step; the other edges age by 1 per firing
+        // of b and go when they pass max_age = 3.
+        assert_eq!(ages[0], (Some(0), Some(1), Some(1)));
+        assert_eq!(ages[2], (Some(0), Some(3), Some(3)));
+        assert_eq!(ages[3], (Some(0), None, None));
+        assert_eq!(ages[4], (Some(0), None, None));
+        assert!(net.edges(2).is_empty() && net.edges(3).is_empty());
+    }
+
+    #[test]
+    fn controlled_removal_keeps_edges_of_well_trained_nodes() {
+        let (net, ages) = aging_run(0.2);
+        assert_eq!(ages[2], (Some(0), Some(3), Some(3)));
+        // Past max_age: the edge to the well-trained node 2 is kept with age 0, the edge to the
+        // poorly trained node 3 (h ≈ 0.66 > N_T) is removed.
+        assert!(net.habituation(2) <= 0.2 && net.habituation(3) > 0.2);
+        assert_eq!(ages[3], (Some(0), Some(0), None));
+        assert_eq!(ages[4], (Some(0), Some(1), None));
+    }
+
+    #[test]
+    fn edges_of_nodes_that_do_not_fire_do_not_age() {
+        let mut net = manual(
+            params(0),
+            &[(0.0, 1.0), (0.1, 1.0), (5.0, 1.0), (5.1, 1.0)],
+            &[(2, 3, 7)],
+        );
+        for _ in 0..10 {
+            net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+        }
+        assert_eq!(net.edge_age(2, 3), Some(7));
+    }
+
+    #[test]
+    fn isolated_node_removal_remaps_edges_synapses_labels_and_state() {
+        let mut net = manual(
+            params(0),
+            &[
+                (0.0, 1.0),
+                (1.0, 0.9),
+                (2.0, 0.8),
+                (3.0, 0.7),
+                (4.0, 0.6),
+                (5.0, 0.5),
+            ],
+            &[(0, 2, 1), (2, 4, 2), (4, 5, 3)],
+        );
+        for (j, l) in [(0, 10), (1, 11), (2, 12), (3, 13), (4, 14), (5, 15)] {
+            net.labels[0][j] = Histogram::start(Some(l), 1.0);
+        }
+        for (i, j, c) in [(0, 1, 4), (0, 2, 1), (2, 4, 2), (3, 5, 9), (5, 0, 3)] {
+            net.synapses[i].push((j, c));
+        }
+        net.train_ctx.prev_node = Some(4);
+        net.check_consistency().unwrap();
+
+        assert_eq!(net.remove_isolated_nodes(), 2);
+        net.check_consistency().unwrap();
+        assert_eq!(net.len(), 4);
+        // Survivors 0, 2, 4, 5 become 0, 1, 2, 3 with their data.
+        assert_eq!(net.weights, vec![0.0, 2.0, 4.0, 5.0]);
+        assert_eq!(net.habituation, vec![1.0, 0.8, 0.6, 0.5]);
+        let labels: Vec<_> = (0..4).map(|j| net.label(0, j).unwrap()).collect();
+        assert_eq!(labels, vec![10, 12, 14, 15]);
+        assert_eq!(net.edge_age(0, 1), Some(1));
+        assert_eq!(net.edge_age(1, 2), Some(2));
+        assert_eq!(net.edge_age(2, 3), Some(3));
+        assert_eq!(net.edge_count(), 3);
+        // 0→1 (to a removed node) and 3→5 (from one) are gone; the rest is remapped.
+        assert_eq!(net.synapses(0), &[(1, 1)]);
+        assert_eq!(net.synapses(1), &[(2, 2)]);
+        assert_eq!(net.synapses(2), &[]);
+        assert_eq!(net.synapses(3), &[(0, 3)]);
+        assert_eq!(net.train_ctx.prev_node, Some(2));
+        assert_eq!(net.remove_isolated_nodes(), 0);
+    }
+
+    #[test]
+    fn isolated_node_removal_never_goes_below_two_nodes() {
+        let mut net = manual(params(0), &[(0.0, 1.0), (1.0, 1.0), (2.0, 1.0)], &[]);
+        assert_eq!(net.remove_isolated_nodes(), 1);
+        assert_eq!(net.len(), 2);
+        assert_eq!(net.weights, vec![1.0, 2.0]);
+        assert_eq!(net.remove_isolated_nodes(), 0);
+        assert_eq!(net.len(), 2);
+    }
+
+    #[test]
+    fn global_context_recursion_and_reset() {
+        let (dim, depth, beta) = (2, 3, 0.4f32);
+        let mut ctx = ContextState::new(dim, depth);
+        ctx.compute_global(&[1.0, 2.0], beta, dim, depth);
+        assert_eq!(ctx.global, vec![1.0, 2.0, 0.0, 0.0, 0.0, 0.0]);
+        // previous best block [w, c1, c2]
+        ctx.prev_block = vec![10.0, 20.0, 1.0, 2.0, 3.0, 5.0];
+        ctx.compute_global(&[7.0, 8.0], beta, dim, depth);
+        // C1 = β·c1 + (1−β)·w; C2 = β·c2 + (1−β)·c1
+        let want = [
+            7.0,
+            8.0,
+            0.4 * 1.0 + 0.6 * 10.0,
+            0.4 * 2.0 + 0.6 * 20.0,
+            0.4 * 3.0 + 0.6 * 1.0,
+            0.4 * 5.0 + 0.6 * 2.0,
+        ];
+        for (g, w) in ctx.global.iter().zip(want) {
+            assert!((g - w).abs() < 1e-5, "{:?} vs {want:?}", ctx.global);
+        }
+        ctx.prev_node = Some(3);
+        ctx.reset();
+        assert_eq!(ctx.prev_node, None);
+        ctx.compute_global(&[7.0, 8.0], beta, dim, depth);
+        assert_eq!(ctx.global, vec![7.0, 8.0, 0.0, 0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn training_and_prediction_use_the_same_recursion() {
+        // Frozen learning (ε = 0, a_T = 0): training steps must pick the nodes prediction picks.
+        let p = MemoryParams {
+            epsilon_b: 0.0,
+            epsilon_n: 0.0,
+            activation_threshold: 0.0,
+            ..params(2)
+        };
+        let mut net = GammaGwr::new(p, Metric::Manhattan, 2, 1).unwrap();
+        // Build a few nodes with learning on, then freeze.
+        let mut learn = net.clone();
+        learn.params.activation_threshold = 0.99;
+        learn.params.habituation_threshold = 1.0;
+        learn.params.epsilon_b = 0.5;
+        let stream: Vec<[f32; 2]> = (0..30)
+            .map(|t| [((t * 7) % 11) as f32 * 0.3, ((t * 5) % 13) as f32 * 0.2])
+            .collect();
+        for x in &stream {
+            learn.train_step(x, &[None], Supervision::Unsupervised);
+        }
+        assert!(learn.len() > 5);
+        net.weights = learn.weights.clone();
+        net.habituation = learn.habituation.clone();
+        net.edges = learn.edges.clone();
+        net.synapses = learn.synapses.clone();
+        net.labels = learn.labels.clone();
+        net.begin_sequence();
+        let mut ctx = net.new_context();
+        let mut contexts_mattered = false;
+        for x in &stream {
+            let predicted = net.predict_step(&mut ctx, x, false).unwrap();
+            let no_ctx = net.predict_step(&mut net.new_context(), x, true).unwrap();
+            contexts_mattered |= predicted.0 != no_ctx.0;
+            let trained = net.train_step(x, &[None], Supervision::Unsupervised);
+            assert!(!trained.inserted);
+            let (b, d) = trained.best.unwrap();
+            assert_eq!(b, predicted.0);
+            assert!((d - predicted.1).abs() < 1e-5);
+        }
+        assert!(
+            contexts_mattered,
+            "the stream should exercise the temporal context"
+        );
+    }
+
+    #[test]
+    fn temporal_synapses_follow_the_stream_within_sequences() {
+        let mut net = manual(
+            params(0),
+            &[(0.0, 1.0), (10.0, 1.0), (20.0, 1.0)],
+            &[(0, 1, 0), (1, 2, 0)],
+        );
+        for x in [0.0, 10.0, 10.0, 20.0] {
+            net.train_step(&[x], &[None], Supervision::Unsupervised);
+        }
+        assert_eq!(net.synapse(0, 1), 1);
+        assert_eq!(net.synapse(1, 1), 0, "no self-synapse");
+        assert_eq!(net.synapse(1, 2), 1);
+        net.begin_sequence();
+        net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+        assert_eq!(
+            net.synapse(2, 0),
+            0,
+            "no synapse across a sequence boundary"
+        );
+        net.train_step(&[20.0], &[None], Supervision::Unsupervised);
+        net.train_step(&[10.0], &[None], Supervision::Unsupervised);
+        net.train_step(&[20.0], &[None], Supervision::Unsupervised);
+        net.train_step(&[10.0], &[None], Supervision::Unsupervised);
+        assert_eq!(net.synapse(0, 2), 1);
+        assert_eq!(net.synapse(2, 1), 2);
+        assert_eq!(net.successor(1), Some(2));
+        assert_eq!(net.successor(2), Some(1));
+        net.check_consistency().unwrap();
+    }
+
+    #[test]
+    fn label_histograms_are_open_ended_and_floored() {
+        let mut h = Histogram::default();
+        assert_eq!(h.argmax(), None);
+        h.reinforce(4_000_000_000, 1.0, 0.1);
+        h.reinforce(7, 1.0, 0.1);
+        assert_eq!(h.entries(), &[(7, 1.0), (4_000_000_000, 0.9)]);
+        assert_eq!(h.argmax(), Some(7));
+        for _ in 0..9 {
+            h.reinforce(7, 1.0, 0.1);
+        }
+        // 0.9 − 9·0.1 = 0 → dropped
+        assert_eq!(h.entries().len(), 1);
+        assert_eq!(h.get(7), 10.0);
+        assert_eq!(h.get(4_000_000_000), 0.0);
+        let mut tie = Histogram::from_entries(vec![(3, 2.0), (9, 2.0)]);
+        assert_eq!(tie.argmax(), Some(3));
+        tie.reinforce(9, 1.0, 0.0);
+        assert_eq!(tie.argmax(), Some(9));
+    }
+
+    #[test]
+    fn unlabelled_samples_update_weights_but_not_histograms() {
+        let mut net = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
+        net.labels[0][0] = Histogram::start(Some(2), 1.0);
+        net.train_step(&[0.2], &[None], Supervision::Unsupervised);
+        assert_eq!(net.histogram(0, 0).entries(), &[(2, 1.0)]);
+        assert!(net.weight(0)[0] > 0.0);
+        net.train_step(&[0.2], &[Some(5)], Supervision::Unsupervised);
+        assert_eq!(net.histogram(0, 0).entries(), &[(2, 0.9), (5, 1.0)]);
+    }
+
+    #[test]
+    fn regulated_growth_follows_the_ground_truth() {
+        let p = params(0);
+        let (eb, mr) = (p.epsilon_b, p.mod_rate);
+        let labelled = |h0: f32| {
+            let mut net = manual(p.clone(), &[(0.0, h0), (1.0, 1.0)], &[(0, 1, 0)]);
+            net.labels[0][0] = Histogram::start(Some(1), 1.0);
+            net
+        };
+        // Right prediction, far input, habituated: no insertion, normal update with labels.
+        let mut net = labelled(0.05);
+        let out = net.train_step(&[-10.0], &[Some(1)], Supervision::Regulated);
+        assert!(!out.inserted);
+        assert_eq!(net.histogram(0, 0).get(1), 2.0);
+        // Wrong prediction, far input, habituated: insertion with the true label.
+        let mut net = labelled(0.05);
+        let out = net.train_step(&[-10.0], &[Some(2)], Supervision::Regulated);
+        assert!(out.inserted);
+        assert_eq!(net.label(0, out.node), Some(2));
+        // Wrong prediction, not insertable (h = 1): update at ε·mod_rate, no label update.
+        let mut net = labelled(1.0);
+        let out = net.train_step(&[-10.0], &[Some(2)], Supervision::Regulated);
+        assert!(!out.inserted);
+        assert_eq!(net.histogram(0, 0).entries(), &[(1, 1.0)]);
+        let moved = net.weight(0)[0];
+        assert!((moved - eb * mr * 0.7 * -10.0).abs() < 1e-6, "{moved}");
+        // No ground truth: normal update, no insertion, no label change.
+        let mut net = labelled(0.05);
+        let out = net.train_step(&[-10.0], &[None], Supervision::Regulated);
+        assert!(!out.inserted);
+        assert_eq!(net.histogram(0, 0).entries(), &[(1, 1.0)]);
+    }
+}
