@@ -1,4 +1,7 @@
-"""Shared fixtures: a tiny synthetic Cornell-layout dataset written into a temporary directory."""
+"""Shared fixtures: a tiny synthetic Cornell-layout dataset written into a temporary directory.
+
+One torch thread: on a 2-core machine shared with builds, two OpenMP threads that spin-wait for
+each other are several times slower than one."""
 
 from __future__ import annotations
 
@@ -7,7 +10,7 @@ import torch
 
 from train_ae.synthetic import write_synthetic_dataset
 
-torch.set_num_threads(2)
+torch.set_num_threads(1)
 
 
 @pytest.fixture(scope="session")

@@ -7,13 +7,13 @@ import torch
 
 from train_ae.model import FEATURE_DIM, GraspAutoencoder, ModelConfig, parameter_count
 
-PAPER_PARAMS = 2_284_996
+PAPER_PARAMS = 2_284_932
 """Exact count of this implementation of the paper configuration."""
 PAPER_CLAIM = 2.3e6
 """The paper's figure (section 5.2: "~2.3 M trainable parameters")."""
 PAPER_TOLERANCE = 0.05
 """Accepted relative deviation from the paper's rounded figure."""
-CPU_PARAMS = 343_716
+CPU_PARAMS = 343_684
 
 
 def test_paper_parameter_count_matches_the_paper():
@@ -57,6 +57,16 @@ def test_feature_tap_sizes_of_the_paper_configuration():
         model.features(torch.zeros(1, 4, 224, 224))
     assert seen["down1"] == (1, 64, 31, 31)
     assert seen["down2"] == (1, 32, 15, 15)
+    assert model.config.feature_grid == (4, 2)  # 32 channels x 4 x 2 cells = 256
+    assert ModelConfig.preset("cpu").feature_grid == (4, 4)  # 16 x 4 x 4 = 256
+
+
+def test_features_are_pooled_before_the_relu():
+    torch.manual_seed(0)
+    model = GraspAutoencoder(ModelConfig.preset("cpu")).eval()
+    with torch.inference_mode():
+        f = model.features(torch.randn(4, 4, 112, 112))
+    assert (f < 0).any() and (f > 0).any()
 
 
 def test_other_input_sizes_keep_the_resolution():

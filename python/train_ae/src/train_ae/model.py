@@ -9,19 +9,21 @@ Layout (paper configuration, 224x224 RGB-D input; ``c`` = 32 base channels)::
     5 residual blocks (4c, 3x3)      /
     conv 4x4 s2  -> 2c x 31x 31      \   the paper's added bottleneck
     conv 4x4 s2  ->  c x 15x 15       |  (section 4.1: "31x31, 64" and "15x15, 32")
-        `-> feature tap: 3-d average pool to 16x4x4 -> 256-d, L2-normalised
+        `-> feature tap (after batch norm, before ReLU): average pool to c x 4 x 2 -> 256-d,
+            L2-normalised
     3 residual blocks (c, 3x3)        |
     deconv 4x4 s2 -> 2c x 31x 31      |
     deconv 4x4 s2 -> 4c x 56x 56     /
     deconv 4x4 s2 -> 2c x112x112     \
     deconv 4x4 s2 ->  c x224x224      |  GR-ConvNet decoder
-    deconv 9x9 s1 ->  c x224x224      |
-    four 1x1 heads: quality, cos 2θ, sin 2θ, width (each 224x224, no activation)
+    deconv 9x9 s1 ->  c x224x224      |  (this one without batch norm and ReLU)
+    dropout 0.1, four 1x1 heads: quality, cos 2θ, sin 2θ, width (each 224x224, no activation)
 
-The 56 -> 31 convolution needs 4 pixels of padding per side; it pads by replication so the border
-outputs see image content rather than only zeros. The transposed convolutions are given the
-encoder's recorded sizes (``output_size``), so the network returns maps at the input resolution
-for any input whose side is a multiple of 4.
+The layer sizes, the pre-ReLU tap pooled to 4 x 2 cells and the head dropout follow the paper's
+public code. The 56 -> 31 convolution needs 4 pixels of padding per side; it pads by replication
+(the public code pads zeros) so no border output sees only padding. The transposed convolutions
+are given the encoder's recorded sizes (``output_size``), so the network returns maps at the
+input resolution for any input whose side is a multiple of 4.
 
 Example::
 
@@ -45,8 +47,8 @@ from torch import nn
 FEATURE_DIM = 256
 """Length of the recognition feature vector (the dual memory's input dimension)."""
 
-FEATURE_GRID = (16, 4, 4)
-"""Shape the feature tap is average-pooled to: (channel groups, rows, columns); 16*4*4 = 256."""
+FEATURE_ROWS = 4
+"""Rows of the average-pooling grid of the feature tap; columns = 256 / (4 * tap channels)."""
 
 
 @dataclass(frozen=True)
@@ -65,10 +67,12 @@ class ModelConfig:
     """Residual blocks at 4c channels after the GR-ConvNet encoder (default: 5)."""
     bottleneck_res_blocks: int = 3
     """Residual blocks at c channels after the feature tap (default: 3)."""
+    head_dropout: float = 0.1
+    """Dropout before the output heads, training only (default: 0.1, as the public code)."""
 
     @staticmethod
     def preset(name: str) -> ModelConfig:
-        """``paper`` (~2.3 M parameters, 224x224) or ``cpu`` (~0.34 M parameters, 112x112)."""
+        """``paper`` (2.28 M parameters, 224x224) or ``cpu`` (0.34 M parameters, 112x112)."""
         if name == "paper":
             return ModelConfig()
         if name == "cpu":
@@ -102,10 +106,18 @@ class ModelConfig:
         if cfg.input_size % 4:
             raise ValueError(f"model config: input_size must be a multiple of 4, got "
                              f"{cfg.input_size}")
-        if cfg.channels % FEATURE_GRID[0] and FEATURE_GRID[0] % cfg.channels:
-            raise ValueError(f"model config: channels ({cfg.channels}) must divide or be a "
-                             f"multiple of {FEATURE_GRID[0]} for the feature pool")
+        if FEATURE_DIM % (FEATURE_ROWS * cfg.channels):
+            raise ValueError(f"model config: channels ({cfg.channels}) times {FEATURE_ROWS} must "
+                             f"divide {FEATURE_DIM} for the feature pool")
+        if not isinstance(cfg.head_dropout, (int, float)) or not 0 <= cfg.head_dropout < 1:
+            raise ValueError(f"model config: head_dropout must be in [0, 1), got "
+                             f"{cfg.head_dropout!r}")
         return cfg
+
+    @property
+    def feature_grid(self) -> tuple[int, int]:
+        """(rows, columns) the tap is average-pooled to: paper 4 x 2, cpu 4 x 4."""
+        return FEATURE_ROWS, FEATURE_DIM // (FEATURE_ROWS * self.channels)
 
 
 class GraspMaps(NamedTuple):
@@ -168,7 +180,7 @@ class GraspAutoencoder(nn.Module):
             *[ResidualBlock(4 * c) for _ in range(config.encoder_res_blocks)])
         # The paper's bottleneck; its second conv is the feature tap.
         self.down1 = _conv_bn_relu(4 * c, 2 * c, 4, 2, 4, mode="replicate")
-        self.down2 = _conv_bn_relu(2 * c, c, 4, 2, 1)
+        self.down2 = nn.Sequential(nn.Conv2d(2 * c, c, 4, stride=2, padding=1), nn.BatchNorm2d(c))
         self.mid_res = nn.Sequential(
             *[ResidualBlock(c) for _ in range(config.bottleneck_res_blocks)])
         self.up1 = _Deconv(c, 2 * c, 4, 2, 1)
@@ -176,7 +188,8 @@ class GraspAutoencoder(nn.Module):
         # GR-ConvNet decoder.
         self.dec1 = _Deconv(4 * c, 2 * c, 4, 2, 1)
         self.dec2 = _Deconv(2 * c, c, 4, 2, 1)
-        self.dec3 = _Deconv(c, c, 9, 1, 4)
+        self.dec3 = nn.ConvTranspose2d(c, c, 9, stride=1, padding=4)  # no BN/ReLU (GR-ConvNet)
+        self.head_dropout = nn.Dropout(config.head_dropout)
         self.heads = nn.Conv2d(c, 4, 1)
 
     def _check_input(self, x: torch.Tensor) -> None:
@@ -197,22 +210,21 @@ class GraspAutoencoder(nn.Module):
         sizes.append(tuple(h.shape[2:]))
         h = self.down1(h)
         sizes.append(tuple(h.shape[2:]))
-        tap = self.down2(h)
+        tap = self.down2(h)  # batch-normalised, before its ReLU
         return tap, sizes
 
-    @staticmethod
-    def _pool_features(tap: torch.Tensor) -> torch.Tensor:
-        pooled = F.adaptive_avg_pool3d(tap.unsqueeze(1), FEATURE_GRID)
+    def _pool_features(self, tap: torch.Tensor) -> torch.Tensor:
+        pooled = F.adaptive_avg_pool2d(tap, self.config.feature_grid)
         return F.normalize(pooled.flatten(1), p=2.0, dim=1, eps=1e-12)
 
     def _decode(self, tap: torch.Tensor, sizes: list[tuple[int, int]]) -> GraspMaps:
-        h = self.mid_res(tap)
+        h = self.mid_res(F.relu(tap))
         h = self.up1(h, sizes[3])
         h = self.up2(h, sizes[2])
         h = self.dec1(h, sizes[1])
         h = self.dec2(h, sizes[0])
-        h = self.dec3(h, sizes[0])
-        out = self.heads(h)
+        h = self.dec3(h)
+        out = self.heads(self.head_dropout(h))
         return GraspMaps(out[:, 0], out[:, 1], out[:, 2], out[:, 3])
 
     def forward(self, x: torch.Tensor) -> GraspMaps:
