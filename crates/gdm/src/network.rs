@@ -958,11 +958,12 @@ mod tests {
         assert!((net.weight(2)[0] - (2.0 + en * (-0.5 - 2.0))).abs() < 1e-6);
     }
 
+    /// Ages of edges 0–1, 0–2, 0–3 (`None`: no edge).
+    type EdgeAges = (Option<u32>, Option<u32>, Option<u32>);
+
     /// b = node 0 fires max_age + 1 times with s = node 1; node 2 is a well-trained neighbour
     /// (h ≤ N_T), node 3 a poorly trained one (h > N_T).
-    fn aging_run(
-        removal_threshold: f32,
-    ) -> (GammaGwr, Vec<(Option<u32>, Option<u32>, Option<u32>)>) {
+    fn aging_run(removal_threshold: f32) -> (GammaGwr, Vec<EdgeAges>) {
         let p = MemoryParams {
             max_age: 3,
             removal_threshold,
