@@ -1,5 +1,23 @@
 //! The `lgdm` Python extension module: a thin pyo3 layer over the Rust crates.
+//!
+//! Python sees the package `lgdm` (`python/lgdm/`), whose pure-Python part gives the
+//! scikit-learn-style class `lgdm.GDM`, the exception hierarchy and the type stubs; this crate
+//! is its native part `lgdm._lgdm`:
+//!
+//! - [`model`]: `Model`, the dual-memory model on numpy arrays, GIL released while it works.
+//! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
+//!
+//! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
+//! then:
+//!
+//! ```python
+//! import numpy as np, lgdm
+//! m = lgdm.GDM(seed=1).fit(np.random.rand(50, 3), category=np.arange(50) % 2)
+//! ```
 #![allow(unsafe_code)] // pyo3's macros expand to FFI glue.
+
+pub mod errors;
+pub mod model;
 
 use pyo3::prelude::*;
 
@@ -7,5 +25,15 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("AUTO_SEQUENCE_BASE", model::AUTO_SEQUENCE_BASE)?;
+    m.add(
+        "PRESETS",
+        lgdm_gdm::config::PRESETS
+            .iter()
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>(),
+    )?;
+    m.add_class::<model::Model>()?;
+    m.add_function(wrap_pyfunction!(model::config_json, m)?)?;
     Ok(())
 }

@@ -1,5 +1,42 @@
-"""lgdm: lifelong 3D object recognition with the Growing Dual-Memory network."""
+"""lgdm: lifelong 3D object recognition with the Growing Dual-Memory network, from Rust.
 
+- :class:`GDM`: the dual-memory model (episodic + semantic Gamma-GWR memories with temporal
+  context and intrinsic replay), scikit-learn style, numpy in and out.
+- :func:`config`: the full hyperparameters of a preset plus overrides.
+- Errors: :class:`LgdmError` and its subclasses.
+
+Example::
+
+    import numpy as np
+    import lgdm
+
+    rng = np.random.default_rng(0)
+    X = np.concatenate([rng.normal(c, 0.05, (40, 3)) for c in (0.0, 1.0)])
+    y = np.repeat([0, 1], 40)
+    model = lgdm.GDM("paper_batch", seed=0).fit(X, instance=y, category=y, epochs=3)
+    instance, category, activation = model.predict(X)
+"""
+
+from ._errors import (
+    CheckpointError,
+    ConfigError,
+    DatasetError,
+    InputError,
+    LgdmError,
+    NotFittedError,
+)
+from ._gdm import GDM, PRESETS, config
 from ._lgdm import __version__
 
-__all__ = ["__version__"]
+__all__ = [
+    "GDM",
+    "PRESETS",
+    "CheckpointError",
+    "ConfigError",
+    "DatasetError",
+    "InputError",
+    "LgdmError",
+    "NotFittedError",
+    "__version__",
+    "config",
+]

@@ -1,0 +1,103 @@
+"""Type stubs of the native module ``lgdm._lgdm`` (built from crates/pybridge with maturin).
+
+Use the public names of ``lgdm``; this module is the engine underneath them.
+"""
+
+from os import PathLike
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+#: First id of the range used for automatic (per-call) sequence ids: 2**63.
+AUTO_SEQUENCE_BASE: int
+#: Names of the hyperparameter presets.
+PRESETS: list[str]
+
+def config_json(text: str) -> str:
+    """Parses a config document (JSON, optional ``"preset"`` key, any subset of fields),
+    validates it and returns the full config as JSON. Raises ``lgdm.ConfigError``."""
+
+class Model:
+    """The native Growing Dual-Memory model. Use ``lgdm.GDM``; this class is its engine.
+
+    Arrays must already be C-contiguous: features float32 (n, d), labels and sequence ids
+    int64 (n,), with -1 for "no label"."""
+
+    def __init__(self, config: str, dim: int) -> None: ...
+    @staticmethod
+    def from_bytes(data: bytes) -> Model:
+        """Reads a model from checkpoint bytes."""
+    @staticmethod
+    def load(path: str | PathLike[str]) -> Model:
+        """Reads a checkpoint file."""
+    def to_bytes(self) -> bytes:
+        """The checkpoint bytes."""
+    def save(self, path: str | PathLike[str]) -> None:
+        """Writes the checkpoint file atomically."""
+    def copy(self) -> Model:
+        """A deep copy."""
+    @property
+    def dim(self) -> int:
+        """Input dimension."""
+    @property
+    def n_episodic(self) -> int:
+        """Episodic node count."""
+    @property
+    def n_semantic(self) -> int:
+        """Semantic node count."""
+    @property
+    def size_bytes(self) -> int:
+        """Checkpoint size in bytes."""
+    @property
+    def config_json(self) -> str:
+        """The full config as JSON."""
+    @property
+    def last_sequence(self) -> int | None:
+        """Sequence id of the last trained sample, if the next sample could continue it."""
+    def train(
+        self,
+        x: npt.NDArray[np.float32],
+        instance: npt.NDArray[np.int64] | None = None,
+        category: npt.NDArray[np.int64] | None = None,
+        sequence: npt.NDArray[np.int64] | None = None,
+        epochs: int = 1,
+        end_episodes: bool = False,
+    ) -> dict[str, float]:
+        """``epochs`` passes (ending an episode after each if ``end_episodes``); returns the
+        last pass's statistics."""
+    def predict(
+        self,
+        x: npt.NDArray[np.float32],
+        sequence: npt.NDArray[np.int64] | None = None,
+        no_context: bool = False,
+    ) -> tuple[
+        npt.NDArray[np.int64],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.int64],
+    ]:
+        """``(instance, category, activation, category_em)``; -1 where no label."""
+    def evaluate(
+        self,
+        x: npt.NDArray[np.float32],
+        instance: npt.NDArray[np.int64] | None = None,
+        category: npt.NDArray[np.int64] | None = None,
+        sequence: npt.NDArray[np.int64] | None = None,
+        no_context: bool = False,
+    ) -> dict[str, float]:
+        """Accuracies and quantization errors against the given labels."""
+    def end_episode(self) -> None:
+        """Ends an episode (isolated-node removal)."""
+    def replay(self) -> dict[str, int]:
+        """Intrinsic replay; ``{"chains": ..., "samples": ...}``."""
+    def _bench_predict(self, x: npt.NDArray[np.float32], repeats: int = 1) -> list[float]:
+        """Seconds of each of ``repeats`` native predict calls (conversion not timed)."""
+    def _bench_train(
+        self,
+        x: npt.NDArray[np.float32],
+        instance: npt.NDArray[np.int64] | None = None,
+        category: npt.NDArray[np.int64] | None = None,
+        repeats: int = 1,
+    ) -> list[float]:
+        """Seconds of each of ``repeats`` native train calls, each on a fresh copy."""
