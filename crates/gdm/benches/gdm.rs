@@ -1,1 +1,212 @@
-fn main() {}
+//! Training throughput and prediction latency at D = 256, K = 2 (paper_incremental, Manhattan)
+//! for networks of 1k and 5k nodes.
+//!
+//! Networks are grown to their size first with a node cap (`max_nodes`) and an insertion-happy
+//! threshold (a_T = 0.999, h_T = 1); once capped, every training step is a pure update (search,
+//! habituation, weight, edge, neighbour, label and synapse updates), which is what is measured.
+//!
+//! Data: "clustered" = 50 objects, each a 20-view sequence drifting around its own random centre
+//! (like a turntable stream); "uniform" = i.i.d. uniform vectors, the worst case for the
+//! early-abandoning search because all distances are alike.
+//!
+//! Run: `cargo bench -p lgdm-gdm` (one core is used).
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use lgdm_gdm::{GammaGwr, Gdm, GdmConfig, Metric, PredictOptions, Sample, Supervision};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+const DIM: usize = 256;
+const VIEWS: usize = 20;
+
+struct Data {
+    xs: Vec<Vec<f32>>,
+    sequence: Vec<u64>,
+    label: Vec<u32>,
+}
+
+impl Data {
+    fn split(&self, at: usize) -> (Data, Data) {
+        let part = |r: std::ops::Range<usize>| Data {
+            xs: self.xs[r.clone()].to_vec(),
+            sequence: self.sequence[r.clone()].to_vec(),
+            label: self.label[r].to_vec(),
+        };
+        (part(0..at), part(at..self.xs.len()))
+    }
+
+    fn samples(&self) -> Vec<Sample<'_>> {
+        (0..self.xs.len())
+            .map(|i| {
+                Sample::labelled(
+                    &self.xs[i],
+                    self.sequence[i],
+                    self.label[i],
+                    self.label[i] % 10,
+                )
+            })
+            .collect()
+    }
+}
+
+fn clustered(n: usize, seed: u64) -> Data {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let unit = Normal::new(0.0f32, 1.0).unwrap();
+    let centres: Vec<Vec<f32>> = (0..50)
+        .map(|_| (0..DIM).map(|_| unit.sample(&mut rng)).collect())
+        .collect();
+    let drifts: Vec<Vec<f32>> = (0..50)
+        .map(|_| (0..DIM).map(|_| 0.3 * unit.sample(&mut rng)).collect())
+        .collect();
+    let mut d = Data {
+        xs: Vec::with_capacity(n),
+        sequence: Vec::with_capacity(n),
+        label: Vec::with_capacity(n),
+    };
+    for i in 0..n {
+        let seq = i / VIEWS;
+        let o = (seq * 7919) % 50;
+        let t = (i % VIEWS) as f32 / VIEWS as f32;
+        d.xs.push(
+            (0..DIM)
+                .map(|k| centres[o][k] + t * drifts[o][k] + 0.1 * unit.sample(&mut rng))
+                .collect(),
+        );
+        d.sequence.push(seq as u64);
+        d.label.push(o as u32);
+    }
+    d
+}
+
+fn uniform(n: usize, seed: u64) -> Data {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Data {
+        xs: (0..n)
+            .map(|_| (0..DIM).map(|_| rng.random::<f32>()).collect())
+            .collect(),
+        sequence: (0..n).map(|i| (i / VIEWS) as u64).collect(),
+        label: (0..n).map(|i| ((i / VIEWS) % 50) as u32).collect(),
+    }
+}
+
+fn growth_config(nodes: usize) -> GdmConfig {
+    let mut c = GdmConfig::paper_incremental();
+    assert_eq!(c.metric, Metric::Manhattan);
+    for m in [&mut c.episodic, &mut c.semantic] {
+        m.activation_threshold = 0.999;
+        m.habituation_threshold = 1.0;
+        m.max_nodes = Some(nodes);
+    }
+    c
+}
+
+/// A dual model whose memories are grown to (at most) `nodes` nodes each.
+fn grown_gdm(nodes: usize, data: &Data) -> Gdm {
+    let mut gdm = Gdm::new(growth_config(nodes), DIM).unwrap();
+    let samples = data.samples();
+    for _ in 0..4 {
+        gdm.train(&samples).unwrap();
+        if gdm.episodic().len() >= nodes {
+            break;
+        }
+    }
+    gdm
+}
+
+fn grown_episodic(nodes: usize, data: &Data) -> GammaGwr {
+    let params = growth_config(nodes).episodic;
+    let mut net = GammaGwr::new(params, Metric::Manhattan, DIM, 2).unwrap();
+    for _ in 0..4 {
+        for (i, x) in data.xs.iter().enumerate() {
+            if i % VIEWS == 0 {
+                net.begin_sequence();
+            }
+            net.train_step(x, &[Some(data.label[i]), None], Supervision::Unsupervised);
+        }
+        if net.len() >= nodes {
+            break;
+        }
+    }
+    net
+}
+
+fn bench(c: &mut Criterion) {
+    let mut group = c.benchmark_group("gdm");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(4));
+
+    for nodes in [1000usize, 5000] {
+        // Growth data, then a stream of new views of the same objects.
+        let data = clustered(2 * nodes + 2200, 1);
+        let (grow, stream) = data.split(2 * nodes + 200);
+        let (data, stream) = (&grow, &stream);
+
+        // One memory: a training step on a capped episodic network.
+        let mut net = grown_episodic(nodes, data);
+        eprintln!(
+            "episodic network: {} nodes, {} edges",
+            net.len(),
+            net.edge_count()
+        );
+        let mut i = 0;
+        group.throughput(Throughput::Elements(1));
+        group.bench_function(BenchmarkId::new("train_step_episodic", nodes), |b| {
+            b.iter(|| {
+                if i % VIEWS == 0 {
+                    net.begin_sequence();
+                }
+                let x = &stream.xs[i % stream.xs.len()];
+                let out = net.train_step(
+                    x,
+                    &[Some(stream.label[i % stream.xs.len()]), None],
+                    Supervision::Unsupervised,
+                );
+                i += 1;
+                black_box(out)
+            })
+        });
+
+        // Dual model: train (both memories) and predict, per sample.
+        let mut gdm = grown_gdm(nodes, data);
+        eprintln!(
+            "dual model (clustered): {} episodic / {} semantic nodes, {:.1} MB",
+            gdm.episodic().len(),
+            gdm.semantic().len(),
+            gdm.size_bytes() as f64 / 1e6
+        );
+        let samples = stream.samples();
+        let batch = &samples[..200];
+        group.throughput(Throughput::Elements(batch.len() as u64));
+        group.bench_function(BenchmarkId::new("predict_clustered", nodes), |b| {
+            b.iter(|| black_box(gdm.predict(batch, PredictOptions::default()).unwrap()))
+        });
+        group.bench_function(BenchmarkId::new("train_dual_clustered", nodes), |b| {
+            b.iter(|| black_box(gdm.train(batch).unwrap()))
+        });
+    }
+
+    let nodes = 5000;
+    let data = uniform(2 * nodes + 200, 3);
+    let gdm = grown_gdm(nodes, &data);
+    eprintln!(
+        "dual model (uniform): {} episodic / {} semantic nodes",
+        gdm.episodic().len(),
+        gdm.semantic().len()
+    );
+    let stream = uniform(200, 4);
+    let samples = stream.samples();
+    group.throughput(Throughput::Elements(samples.len() as u64));
+    group.bench_function(BenchmarkId::new("predict_uniform", nodes), |b| {
+        b.iter(|| black_box(gdm.predict(&samples, PredictOptions::default()).unwrap()))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -67,7 +67,7 @@ impl Metric {
     }
 }
 
-const LANES: usize = 16;
+const LANES: usize = 8;
 
 /// Σ|a − b|.
 pub fn manhattan(a: &[f32], b: &[f32]) -> f32 {
@@ -112,7 +112,7 @@ fn cosine_from(dot: f32, na: f32, nb: f32) -> f32 {
 
 #[inline(always)]
 fn reduce(acc: [f32; LANES]) -> f32 {
-    // Fixed pairwise order: deterministic and vectorisable.
+    // Fixed pairwise order: deterministic.
     let mut v = acc;
     let mut w = LANES / 2;
     while w > 0 {
@@ -297,12 +297,90 @@ impl Accumulator for Maha<'_> {
 }
 
 /// Elements between two early-abandon checks inside a block.
-const CHECK: usize = 128;
+const CHECK: usize = 64;
 
 /// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index.
 #[inline(always)]
 fn before(d: f32, i: usize, e: f32, j: usize) -> bool {
     d < e || (d == e && i < j)
+}
+
+/// Running best and second-best (distance, index), ranked by `before`.
+struct Ranking {
+    best: (usize, f32),
+    second: (usize, f32),
+    want_second: bool,
+}
+
+impl Ranking {
+    fn new(want_second: bool) -> Self {
+        Ranking {
+            best: (usize::MAX, f32::INFINITY),
+            second: (usize::MAX, f32::INFINITY),
+            want_second,
+        }
+    }
+
+    /// Distance above which a node cannot enter the ranking.
+    #[inline(always)]
+    fn bound(&self) -> f32 {
+        if self.want_second {
+            self.second.1
+        } else {
+            self.best.1
+        }
+    }
+
+    #[inline(always)]
+    fn seen(&self, j: usize) -> bool {
+        j == self.best.0 || j == self.second.0
+    }
+
+    #[inline(always)]
+    fn offer(&mut self, j: usize, d: f32) {
+        if before(d, j, self.best.1, self.best.0) {
+            self.second = self.best;
+            self.best = (j, d);
+        } else if self.want_second && before(d, j, self.second.1, self.second.0) {
+            self.second = (j, d);
+        }
+    }
+
+    fn finish(self) -> Matches {
+        Matches {
+            best: self.best,
+            second: (self.want_second && self.second.0 != usize::MAX).then_some(self.second),
+        }
+    }
+}
+
+/// The distance of one node, or `None` as soon as a lower bound exceeds `bound`.
+#[inline(always)]
+fn bounded_distance<A: Accumulator>(
+    acc: &A,
+    node: &[f32],
+    query: &[f32],
+    dim: usize,
+    alphas: &[f32],
+    bound: f32,
+) -> Option<f32> {
+    let mut total = 0.0f32;
+    for (k, &alpha) in alphas.iter().enumerate() {
+        let w = &node[k * dim..(k + 1) * dim];
+        let q = &query[k * dim..(k + 1) * dim];
+        let mut s = 0.0f32;
+        let mut off = 0;
+        while off < dim {
+            let end = (off + CHECK).min(dim);
+            s += acc.accumulate(&q[off..end], &w[off..end], off);
+            off = end;
+            if total + alpha * acc.finish(s) > bound {
+                return None;
+            }
+        }
+        total += alpha * acc.finish(s);
+    }
+    Some(total)
 }
 
 #[inline(always)]
@@ -312,6 +390,7 @@ fn search_monotone<A: Accumulator>(
     query: &[f32],
     alphas: &[f32],
     want_second: bool,
+    seeds: &[usize],
 ) -> Option<Matches> {
     let dim = buf.dim;
     let stride = buf.depth * dim;
@@ -319,38 +398,27 @@ fn search_monotone<A: Accumulator>(
     if n == 0 {
         return None;
     }
-    let mut best = (usize::MAX, f32::INFINITY);
-    let mut second = (usize::MAX, f32::INFINITY);
-    'nodes: for j in 0..n {
-        let node = &buf.weights[j * stride..(j + 1) * stride];
-        let bound = if want_second { second.1 } else { best.1 };
-        let mut total = 0.0f32;
-        for (k, &alpha) in alphas.iter().enumerate() {
-            let w = &node[k * dim..(k + 1) * dim];
-            let q = &query[k * dim..(k + 1) * dim];
-            let mut s = 0.0f32;
-            let mut off = 0;
-            while off < dim {
-                let end = (off + CHECK).min(dim);
-                s += acc.accumulate(&q[off..end], &w[off..end], off);
-                off = end;
-                if total + alpha * acc.finish(s) > bound {
-                    continue 'nodes;
-                }
+    let mut rank = Ranking::new(want_second);
+    // Likely winners first: a tight bound early makes the scan abandon most nodes quickly.
+    // The ranking is by (distance, index), so the visiting order cannot change the result.
+    for &j in seeds {
+        if j < n && !rank.seen(j) {
+            let node = &buf.weights[j * stride..(j + 1) * stride];
+            if let Some(d) = bounded_distance(acc, node, query, dim, alphas, rank.bound()) {
+                rank.offer(j, d);
             }
-            total += alpha * acc.finish(s);
-        }
-        if before(total, j, best.1, best.0) {
-            second = best;
-            best = (j, total);
-        } else if want_second && before(total, j, second.1, second.0) {
-            second = (j, total);
         }
     }
-    Some(Matches {
-        best,
-        second: (want_second && second.0 != usize::MAX).then_some(second),
-    })
+    for j in 0..n {
+        if rank.seen(j) {
+            continue;
+        }
+        let node = &buf.weights[j * stride..(j + 1) * stride];
+        if let Some(d) = bounded_distance(acc, node, query, dim, alphas, rank.bound()) {
+            rank.offer(j, d);
+        }
+    }
+    Some(rank.finish())
 }
 
 fn search_cosine(
@@ -365,8 +433,7 @@ fn search_cosine(
     if n == 0 {
         return None;
     }
-    let mut best = (usize::MAX, f32::INFINITY);
-    let mut second = (usize::MAX, f32::INFINITY);
+    let mut rank = Ranking::new(want_second);
     for j in 0..n {
         let node = &buf.weights[j * stride..(j + 1) * stride];
         let mut total = 0.0f32;
@@ -377,21 +444,14 @@ fn search_cosine(
                     &node[k * dim..(k + 1) * dim],
                 );
         }
-        if before(total, j, best.1, best.0) {
-            second = best;
-            best = (j, total);
-        } else if want_second && before(total, j, second.1, second.0) {
-            second = (j, total);
-        }
+        rank.offer(j, total);
     }
-    Some(Matches {
-        best,
-        second: (want_second && second.0 != usize::MAX).then_some(second),
-    })
+    Some(rank.finish())
 }
 
 /// Finds the node(s) minimising d_j = Σ_k α_k · dist(query_k, node_{j,k}) over the first
-/// `alphas.len()` blocks. `inv_var` is used by Mahalanobis only.
+/// `alphas.len()` blocks, ties going to the smaller index. `inv_var` is used by Mahalanobis only;
+/// `seeds` are nodes to try first (a speed hint: the result does not depend on it).
 pub(crate) fn search(
     metric: Metric,
     inv_var: &[f32],
@@ -399,16 +459,18 @@ pub(crate) fn search(
     query: &[f32],
     alphas: &[f32],
     want_second: bool,
+    seeds: &[usize],
 ) -> Option<Matches> {
     debug_assert!(alphas.len() <= buf.depth);
     debug_assert!(query.len() >= alphas.len() * buf.dim);
+    let w = want_second;
     match metric {
-        Metric::Manhattan => search_monotone(&L1, buf, query, alphas, want_second),
-        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, want_second),
-        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, want_second),
-        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, want_second),
-        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, want_second),
-        Metric::Cosine => search_cosine(buf, query, alphas, want_second),
+        Metric::Manhattan => search_monotone(&L1, buf, query, alphas, w, seeds),
+        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, w, seeds),
+        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, w, seeds),
+        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, w, seeds),
+        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, w, seeds),
+        Metric::Cosine => search_cosine(buf, query, alphas, w),
     }
 }
 
@@ -588,12 +650,21 @@ mod tests {
             Metric::Mahalanobis,
         ] {
             for alphas in [&[0.665f32, 0.245, 0.090][..], &[1.0][..]] {
-                let m = search(metric, &iv, &buf, &q, alphas, true).unwrap();
+                let m = search(metric, &iv, &buf, &q, alphas, true, &[]).unwrap();
                 let want = brute(metric, &buf, &q, alphas);
+                // Seeds (including repeats and out-of-range ones) are only a speed hint.
+                for seeds in [
+                    &[want[0].1, 7, 7, 999][..],
+                    &[want[1].1, want[0].1],
+                    &[n - 1],
+                ] {
+                    let seeded = search(metric, &iv, &buf, &q, alphas, true, seeds);
+                    assert_eq!(seeded.unwrap(), m, "{metric:?} {seeds:?}");
+                }
                 assert_eq!(m.best.0, want[0].1, "{metric:?}");
                 assert!(close(m.best.1, want[0].0), "{metric:?}");
                 assert_eq!(m.second.unwrap().0, want[1].1, "{metric:?}");
-                let one = search(metric, &iv, &buf, &q, alphas, false).unwrap();
+                let one = search(metric, &iv, &buf, &q, alphas, false, &[3]).unwrap();
                 assert_eq!(one.best.0, want[0].1);
                 assert!(one.second.is_none());
             }

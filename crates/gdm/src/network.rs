@@ -131,9 +131,13 @@ pub(crate) struct ContextState {
     pub global: Vec<f32>,
     /// Node that represented the previous sample of the sequence.
     pub prev_node: Option<u32>,
+    /// Speed hint only (not saved, not compared): the previous step's best node.
+    pub prev_best: Option<u32>,
+    /// Scratch: nodes the search tries first.
+    pub seeds: Vec<usize>,
 }
 
-/// Equality ignores the `global` scratch buffer.
+/// Equality ignores the scratch buffers and the speed hint (they never change a result).
 impl PartialEq for ContextState {
     fn eq(&self, other: &Self) -> bool {
         self.prev_block == other.prev_block && self.prev_node == other.prev_node
@@ -146,6 +150,8 @@ impl ContextState {
             prev_block: vec![0.0; dim * depth],
             global: vec![0.0; dim * depth],
             prev_node: None,
+            prev_best: None,
+            seeds: Vec::new(),
         }
     }
 
@@ -153,6 +159,7 @@ impl ContextState {
     pub fn reset(&mut self) {
         self.prev_block.fill(0.0);
         self.prev_node = None;
+        self.prev_best = None;
     }
 
     /// C_0 = x; C_k = β·c_{b,k}(t−1) + (1−β)·c_{b,k−1}(t−1), with c_{b,0} ≡ w_b.
@@ -359,6 +366,23 @@ impl GammaGwr {
         }
     }
 
+    /// Fills `seeds` with the nodes likely to match next: the previous best and representing
+    /// nodes, their neighbours and their strongest temporal successors.
+    fn fill_seeds(&self, prev: [Option<u32>; 2], seeds: &mut Vec<usize>) {
+        seeds.clear();
+        for p in prev.into_iter().flatten() {
+            let p = p as usize;
+            if p >= self.len() {
+                continue;
+            }
+            seeds.push(p);
+            if let Some(next) = self.successor(p) {
+                seeds.push(next);
+            }
+            seeds.extend(self.edges[p].iter().map(|e| e.to as usize));
+        }
+    }
+
     /// Starts a new training sequence: contexts reset to zero, no temporal synapse from the
     /// previous sample.
     pub fn begin_sequence(&mut self) {
@@ -400,6 +424,11 @@ impl GammaGwr {
                 inserted: true,
             };
         }
+        let mut seeds = std::mem::take(&mut self.train_ctx.seeds);
+        self.fill_seeds(
+            [self.train_ctx.prev_best, self.train_ctx.prev_node],
+            &mut seeds,
+        );
         let Matches { best, second } = metric::search(
             self.metric,
             self.inv_var(),
@@ -407,9 +436,12 @@ impl GammaGwr {
             &self.train_ctx.global,
             &self.alphas,
             true,
+            &seeds,
         )
         .expect("network has nodes");
+        self.train_ctx.seeds = seeds;
         let (b, d_b) = best;
+        self.train_ctx.prev_best = Some(b as u32);
         let s_node = second.expect("network has two nodes").0;
         let stride = self.stride();
         // The context of the next step comes from b as it was matched (before its update).
@@ -613,29 +645,37 @@ impl GammaGwr {
         x: &[f32],
         no_context: bool,
     ) -> Option<(usize, f32)> {
-        if no_context {
-            let m = metric::search(
+        let mut seeds = std::mem::take(&mut ctx.seeds);
+        self.fill_seeds([ctx.prev_best, None], &mut seeds);
+        let found = if no_context {
+            metric::search(
                 self.metric,
                 self.inv_var(),
                 &self.buffer(),
                 x,
                 &NO_CONTEXT_ALPHAS,
                 false,
-            )?;
-            return Some(m.best);
+                &seeds,
+            )
+        } else {
+            ctx.compute_global(x, self.params.beta, self.dim, self.depth);
+            metric::search(
+                self.metric,
+                self.inv_var(),
+                &self.buffer(),
+                &ctx.global,
+                &self.alphas,
+                false,
+                &seeds,
+            )
+        };
+        ctx.seeds = seeds;
+        let (b, d) = found?.best;
+        ctx.prev_best = Some(b as u32);
+        if !no_context {
+            ctx.prev_block.copy_from_slice(self.node_block(b));
         }
-        ctx.compute_global(x, self.params.beta, self.dim, self.depth);
-        let m = metric::search(
-            self.metric,
-            self.inv_var(),
-            &self.buffer(),
-            &ctx.global,
-            &self.alphas,
-            false,
-        )?;
-        let (b, _) = m.best;
-        ctx.prev_block.copy_from_slice(self.node_block(b));
-        Some(m.best)
+        Some((b, d))
     }
 
     /// A fresh prediction stream state for this network.
@@ -724,6 +764,7 @@ impl GammaGwr {
                 .map(|(_, h)| h)
                 .collect();
         }
+        self.train_ctx.prev_best = None;
         self.train_ctx.prev_node = self.train_ctx.prev_node.and_then(|p| {
             let m = remap[p as usize];
             (m != u32::MAX).then_some(m)
