@@ -1,15 +1,314 @@
-//! End-to-end tests: each drives the real `lgdm` binary as a user would.
+//! End-to-end tests: each drives the real `lgdm` binary as a user would, on a tiny generated
+//! dataset, and checks what a user relies on: the files a run writes, the documented fields of
+//! `metrics.json`, accuracies clearly above chance, and same seed → same metrics.
 
-use std::process::Command;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
 
-fn lgdm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_lgdm"))
+fn lgdm(cache: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_lgdm"));
+    c.env("LGDM_CACHE_DIR", cache);
+    c
+}
+
+fn work_dir() -> PathBuf {
+    let dir =
+        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn check(out: Output, what: &str) -> Output {
+    assert!(
+        out.status.success(),
+        "{what} failed ({}):\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A tiny dataset (small preset, 4 frames per sequence), generated once per test binary.
+fn tiny_dataset() -> &'static Path {
+    static DATA: OnceLock<PathBuf> = OnceLock::new();
+    DATA.get_or_init(|| {
+        let dir = work_dir().join("tiny");
+        check(
+            lgdm(&work_dir().join("cache"))
+                .args([
+                    "gen-dataset",
+                    "--preset",
+                    "small",
+                    "--frames",
+                    "4",
+                    "--seed",
+                    "3",
+                    "--progress",
+                    "none",
+                ])
+                .arg("--out")
+                .arg(&dir)
+                .output()
+                .unwrap(),
+            "gen-dataset",
+        );
+        dir
+    })
+}
+
+fn train(scenario: &str, out: &Path, extra: &[&str]) -> Value {
+    let cache = work_dir().join("cache");
+    let mut cmd = lgdm(&cache);
+    cmd.args([
+        "train",
+        "--scenario",
+        scenario,
+        "--trials",
+        "2",
+        "--seed",
+        "5",
+        "--progress",
+        "none",
+    ])
+    .arg("--dataset")
+    .arg(tiny_dataset())
+    .arg("--out")
+    .arg(out)
+    .args(extra);
+    let output = check(
+        cmd.output().unwrap(),
+        &format!("train --scenario {scenario}"),
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("category accuracy (G-SM)"),
+        "no summary table:\n{stdout}"
+    );
+    let text = std::fs::read_to_string(out.join("metrics.json")).expect("metrics.json written");
+    serde_json::from_str(&text).expect("metrics.json parses")
+}
+
+/// metrics.json without the wall-clock fields, which differ from run to run.
+fn without_times(v: &Value) -> Value {
+    match v {
+        Value::Object(m) => Value::Object(
+            m.iter()
+                .filter(|(k, _)| {
+                    !matches!(
+                        k.as_str(),
+                        "seconds" | "train_seconds" | "inference_ms_per_sample" | "dataset"
+                    )
+                })
+                .map(|(k, v)| (k.clone(), without_times(v)))
+                .collect(),
+        ),
+        Value::Array(a) => Value::Array(a.iter().map(without_times).collect()),
+        other => other.clone(),
+    }
+}
+
+fn run_scenario(scenario: &str, extra: &[&str]) {
+    let base = work_dir().join(format!("run-{scenario}{}", extra.join("")));
+    let a = train(scenario, &base.join("a"), extra);
+    for file in [
+        "metrics.json",
+        "config.toml",
+        "summary.txt",
+        "model-trial0.lgdm",
+        "model-trial1.lgdm",
+        "nodes.png",
+        "accuracy.png",
+        "quantization_error.png",
+        "category_accuracy.png",
+    ] {
+        assert!(
+            base.join("a").join(file).is_file(),
+            "{scenario}: {file} missing"
+        );
+    }
+    // Documented fields.
+    assert_eq!(a["scenario"], scenario);
+    assert_eq!(a["format_version"], 1);
+    let trials = a["trials"].as_array().unwrap();
+    assert_eq!(trials.len(), 2);
+    for t in trials {
+        let steps = t["steps"].as_array().unwrap();
+        assert!(!steps.is_empty());
+        for s in steps {
+            for key in [
+                "episodic_nodes",
+                "semantic_nodes",
+                "quantization_error_em",
+                "quantization_error_sm",
+                "seconds",
+            ] {
+                assert!(s[key].is_number(), "{scenario}: step field {key}");
+            }
+        }
+        let last = steps.last().unwrap();
+        assert!(
+            last["test"]["category_accuracy_sm"].is_number(),
+            "{scenario}: last step evaluated"
+        );
+        assert!(last["train"]["instance_accuracy"].is_number());
+        for key in [
+            "model_size_bytes",
+            "inference_ms_per_sample",
+            "episodic_nodes",
+            "semantic_nodes",
+        ] {
+            assert!(t[key].is_number(), "{scenario}: trial field {key}");
+        }
+        assert!(t["new_instance"]["category_accuracy_sm"].is_number());
+        assert_eq!(
+            t["per_category_test_accuracy"].as_array().unwrap().len(),
+            10
+        );
+    }
+    // Above chance (10 categories: 10 %; 20 trained instances: 5 %) by a clear margin.
+    let s = &a["summary"];
+    let cat = s["test_category_accuracy_sm"]["mean"].as_f64().unwrap();
+    let cat_em = s["test_category_accuracy_em"]["mean"].as_f64().unwrap();
+    let inst = s["test_instance_accuracy"]["mean"].as_f64().unwrap();
+    println!("{scenario}: test category (G-SM) {cat:.3}, (G-EM) {cat_em:.3}, instance {inst:.3}");
+    assert!(
+        cat > 0.3,
+        "{scenario}: test category accuracy {cat} is near chance"
+    );
+    assert!(
+        cat_em > 0.3,
+        "{scenario}: G-EM category accuracy {cat_em} is near chance"
+    );
+    assert!(
+        inst > 0.15,
+        "{scenario}: test instance accuracy {inst} is near chance"
+    );
+    // Same seed, same metrics.
+    let b = train(scenario, &base.join("b"), extra);
+    assert_eq!(
+        without_times(&a),
+        without_times(&b),
+        "{scenario}: two runs with one seed differ"
+    );
 }
 
 #[test]
 fn version_is_printed() {
-    let out = lgdm().arg("--version").output().expect("run lgdm");
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.starts_with("lgdm "), "unexpected: {text}");
+    let out = check(
+        lgdm(&work_dir()).arg("--version").output().unwrap(),
+        "--version",
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("lgdm "));
+}
+
+#[test]
+fn batch_scenario() {
+    run_scenario("batch", &["--epochs", "3"]);
+}
+
+#[test]
+fn incremental_scenario() {
+    run_scenario("incremental", &[]);
+}
+
+#[test]
+fn ni_scenario() {
+    run_scenario("ni", &[]);
+}
+
+#[test]
+fn nc_scenario() {
+    run_scenario("nc", &[]);
+}
+
+#[test]
+fn nic_scenario() {
+    run_scenario("nic", &[]);
+}
+
+#[test]
+fn eval_reports_accuracy_and_writes_the_confusion_matrix() {
+    let base = work_dir().join("eval");
+    let _ = train("ni", &base.join("run"), &[]);
+    let out = base.join("eval-out");
+    let output = check(
+        lgdm(&work_dir().join("cache"))
+            .args(["eval", "--progress", "none", "--model"])
+            .arg(base.join("run/model-trial0.lgdm"))
+            .arg("--dataset")
+            .arg(tiny_dataset())
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap(),
+        "eval",
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("model size"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("confusion.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 11, "header + 10 categories");
+    assert!(out.join("confusion.png").is_file());
+    let eval: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
+    assert!(eval["category_accuracy_sm"].as_f64().unwrap() > 0.3);
+}
+
+#[test]
+fn bad_input_gives_clear_errors_and_no_output() {
+    let base = work_dir().join("bad");
+    std::fs::create_dir_all(&base).unwrap();
+    // A dataset directory that does not exist.
+    let out = lgdm(&work_dir().join("cache"))
+        .args([
+            "train",
+            "--scenario",
+            "ni",
+            "--progress",
+            "none",
+            "--dataset",
+        ])
+        .arg(base.join("no-such-dataset"))
+        .arg("--out")
+        .arg(base.join("run"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no-such-dataset"),
+        "error does not name the path: {err}"
+    );
+    assert!(!base.join("run").join("metrics.json").exists());
+    // A corrupt checkpoint.
+    let model = base.join("corrupt.lgdm");
+    std::fs::write(&model, b"LGDM this is not a model").unwrap();
+    let out = lgdm(&work_dir().join("cache"))
+        .args(["eval", "--progress", "none", "--model"])
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("corrupt.lgdm"),
+        "error does not name the file: {err}"
+    );
+    // An unknown preset.
+    let out = lgdm(&work_dir().join("cache"))
+        .args([
+            "train",
+            "--scenario",
+            "ni",
+            "--preset",
+            "nonsense",
+            "--progress",
+            "none",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nonsense"));
 }

@@ -3,9 +3,13 @@
 //! `main` only parses arguments, runs one subcommand and maps its error to an exit code;
 //! every subcommand lives in its own module under `cmd/` and composes library calls.
 
+mod calibration;
 mod cmd;
-#[allow(dead_code)] // used by the subcommands as they land
+mod data;
+mod experiment;
+mod plot;
 mod progress;
+mod report;
 
 use clap::{Parser, Subcommand};
 
@@ -21,6 +25,14 @@ struct Cli {
 enum Command {
     /// Print the build's version and the embedded defaults.
     Info,
+    /// Run a lifelong-learning scenario over trials: model, metrics.json, plots, summary.
+    Train(cmd::train::Args),
+    /// Score a saved model on a dataset: accuracy, confusion matrix, size, inference time.
+    Eval(cmd::eval::Args),
+    /// Generate a sequential point-cloud dataset: MCAP collections, manifest, grasp images.
+    GenDataset(cmd::gen_dataset::Args),
+    /// Compute per-view features of a dataset and write them with labels as .npz.
+    Features(cmd::features::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -34,6 +46,10 @@ fn main() -> std::process::ExitCode {
         .init();
     let result = match cli.command {
         Command::Info => cmd::info::run(),
+        Command::Train(args) => cmd::train::run(args),
+        Command::Eval(args) => cmd::eval::run(args),
+        Command::GenDataset(args) => cmd::gen_dataset::run(args),
+        Command::Features(args) => cmd::features::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -35,16 +35,13 @@ impl Reporter {
         Reporter { mode }
     }
 
-    /// The mode.
-    pub fn mode(&self) -> ProgressMode {
-        self.mode
-    }
-
     /// A one-line note for the user (stderr; a JSON line in `jsonl` mode; dropped in `none`).
     pub fn message(&self, text: &str) {
         match self.mode {
             ProgressMode::Bar => eprintln!("{text}"),
-            ProgressMode::Jsonl => json_line(&serde_json::json!({ "event": "message", "text": text })),
+            ProgressMode::Jsonl => {
+                json_line(&serde_json::json!({ "event": "message", "text": text }))
+            }
             ProgressMode::None => {}
         }
     }
@@ -62,15 +59,22 @@ impl Reporter {
             ProgressMode::Bar => {
                 let b = ProgressBar::new(total);
                 b.set_style(
-                    ProgressStyle::with_template("{prefix:>14} [{elapsed_precise}] {wide_bar} {pos}/{len} {msg} (eta {eta})")
-                        .expect("valid template"),
+                    ProgressStyle::with_template(
+                        "{prefix:>14} [{elapsed_precise}] {wide_bar} {pos}/{len} {msg} (eta {eta})",
+                    )
+                    .expect("valid template"),
                 );
                 b.set_prefix(task.to_string());
                 Some(b)
             }
             _ => None,
         };
-        Task { mode: self.mode, task: task.to_string(), bar, last_emitted: None }
+        Task {
+            mode: self.mode,
+            task: task.to_string(),
+            bar,
+            last_emitted: None,
+        }
     }
 }
 

@@ -1,3 +1,7 @@
 //! One module per subcommand: each has an `Args` struct (clap) and a `run` function.
 
+pub mod eval;
+pub mod features;
+pub mod gen_dataset;
 pub mod info;
+pub mod train;

@@ -1,0 +1,275 @@
+//! Lifelong-learning experiments: a scenario's plan run over trials, with every figure recorded.
+//!
+//! The algorithm lives in `lgdm_gdm`; this module only feeds it the plan's sequences in order and
+//! measures after every step.
+
+pub mod metrics;
+pub mod scenario;
+
+use anyhow::{Context, Result};
+use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample, Scores};
+use lgdm_pointcloud::features::FeatureTable;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::time::Instant;
+
+use metrics::{Figures, StepRecord, TrialRecord};
+use scenario::{EvalScope, Plan, Rows, Scenario};
+
+/// Everything a trial needs besides the data.
+#[derive(Clone, Debug)]
+pub struct TrialSettings {
+    /// The protocol.
+    pub scenario: Scenario,
+    /// Dual-memory hyperparameters.
+    pub config: GdmConfig,
+    /// Learning epochs per step (batch: the number of steps).
+    pub epochs: usize,
+    /// Intrinsic replay after every step.
+    pub replay: bool,
+    /// Evaluate on the test set after every n-th step (the last step always).
+    pub eval_every: usize,
+    /// Trial seed: plan, held-out instances and the network's RNG.
+    pub seed: u64,
+}
+
+/// Progress of a run, for the cli's bar or JSON lines.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StepProgress {
+    /// Trial index.
+    pub trial: usize,
+    /// Step index within the trial (1-based).
+    pub step: usize,
+    /// Steps in the trial.
+    pub steps: usize,
+    /// Step label.
+    pub label: String,
+    /// Test category accuracy of the semantic memory after the step, if evaluated.
+    pub test_category_accuracy: Option<f64>,
+    /// Episodic nodes after the step.
+    pub episodic_nodes: usize,
+}
+
+/// The data of a run: feature table plus the manifest facts the plans need.
+#[derive(Debug)]
+pub struct RunData<'a> {
+    /// Features and row labels.
+    pub table: &'a FeatureTable,
+    /// Training collections (manifest split).
+    pub train_collections: Vec<u32>,
+    /// Test collections (manifest split).
+    pub test_collections: Vec<u32>,
+    /// Category names by id.
+    pub category_names: Vec<String>,
+}
+
+impl RunData<'_> {
+    fn rows(&self) -> Rows<'_> {
+        Rows {
+            collection: &self.table.collection,
+            category: &self.table.category,
+            instance: &self.table.instance,
+            sequence: &self.table.sequence,
+            frame: &self.table.frame,
+        }
+    }
+
+    /// The samples of some sequences, in order, with labels.
+    pub fn samples<'s>(&'s self, sequences: &[Vec<usize>]) -> Vec<Sample<'s>> {
+        let t = self.table;
+        sequences
+            .iter()
+            .flatten()
+            .map(|&i| Sample {
+                x: t.row(i),
+                sequence: t.sequence[i],
+                instance: Some(t.instance[i]),
+                category: Some(t.category[i]),
+            })
+            .collect()
+    }
+}
+
+/// Builds the plan of one trial.
+pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
+    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    scenario::plan(
+        s.scenario,
+        data.rows(),
+        &data.train_collections,
+        &data.test_collections,
+        &data.category_names,
+        s.epochs,
+        &mut rng,
+    )
+}
+
+fn figures(scores: &Scores) -> Figures {
+    Figures {
+        n: scores.n,
+        instance_accuracy: scores.instance_accuracy,
+        category_accuracy_em: scores.category_accuracy_em,
+        category_accuracy_sm: scores.category_accuracy_sm,
+    }
+}
+
+/// Runs one trial: the plan's steps in order, measuring after each; returns the trained model
+/// and the trial's record.
+pub fn run_trial(
+    data: &RunData<'_>,
+    s: &TrialSettings,
+    trial: usize,
+    progress: &mut dyn FnMut(StepProgress),
+) -> Result<(Gdm, TrialRecord)> {
+    let plan = plan_trial(data, s);
+    let mut config = s.config.clone();
+    config.seed = s.seed;
+    let mut gdm = Gdm::new(config, data.table.dim).context("creating the dual memory")?;
+    let opts = PredictOptions::default();
+    let started = Instant::now();
+    let mut steps = Vec::with_capacity(plan.steps.len());
+    let mut seen_categories = std::collections::BTreeSet::new();
+    let mut seen_train: Vec<Vec<usize>> = Vec::new();
+    let n_steps = plan.steps.len();
+    for (k, step) in plan.steps.iter().enumerate() {
+        let step_started = Instant::now();
+        let samples = data.samples(&step.sequences);
+        let mut train_stats = None;
+        for _ in 0..if s.scenario == Scenario::Batch {
+            1
+        } else {
+            s.epochs.max(1)
+        } {
+            train_stats = Some(
+                gdm.train(&samples)
+                    .with_context(|| format!("training on {}", step.label))?,
+            );
+        }
+        if s.replay {
+            gdm.replay().context("intrinsic replay")?;
+        }
+        gdm.end_episode();
+        for seq in &step.sequences {
+            seen_categories.insert(data.table.category[seq[0]]);
+        }
+        if s.scenario != Scenario::Batch {
+            seen_train.extend(step.sequences.iter().cloned());
+        }
+        let last = k + 1 == n_steps;
+        let evaluate = last || (k + 1) % s.eval_every.max(1) == 0;
+        let scoped = |seqs: &[Vec<usize>]| -> Vec<Vec<usize>> {
+            match plan.scope {
+                EvalScope::All => seqs.to_vec(),
+                EvalScope::SeenCategories => seqs
+                    .iter()
+                    .filter(|q| seen_categories.contains(&data.table.category[q[0]]))
+                    .cloned()
+                    .collect(),
+            }
+        };
+        let (train, test) = if evaluate {
+            let train_seqs = if s.scenario == Scenario::Batch {
+                &step.sequences
+            } else {
+                &seen_train
+            };
+            let train = gdm
+                .evaluate(&data.samples(train_seqs), opts)
+                .context("evaluating on training data")?;
+            let test_samples = data.samples(&scoped(&plan.test));
+            let test = if test_samples.is_empty() {
+                None
+            } else {
+                Some(
+                    gdm.evaluate(&test_samples, opts)
+                        .context("evaluating on test data")?,
+                )
+            };
+            (Some(train), test)
+        } else {
+            (None, None)
+        };
+        let ts = train_stats.expect("at least one epoch");
+        let record = StepRecord {
+            step: k + 1,
+            label: step.label.clone(),
+            train_samples: ts.samples,
+            episodic_nodes: gdm.episodic().len(),
+            semantic_nodes: gdm.semantic().len(),
+            quantization_error_em: ts.quantization_error_em,
+            quantization_error_sm: ts.quantization_error_sm,
+            train: train.as_ref().map(figures),
+            test: test.as_ref().map(figures),
+            seconds: step_started.elapsed().as_secs_f64(),
+        };
+        progress(StepProgress {
+            trial,
+            step: k + 1,
+            steps: n_steps,
+            label: step.label.clone(),
+            test_category_accuracy: record.test.as_ref().map(|f| f.category_accuracy_sm),
+            episodic_nodes: record.episodic_nodes,
+        });
+        steps.push(record);
+    }
+    let train_seconds = started.elapsed().as_secs_f64();
+
+    // Final figures: test (with and without temporal context), new instances, per category.
+    let test_samples = data.samples(&plan.test);
+    let t0 = Instant::now();
+    let predictions = gdm
+        .predict(&test_samples, opts)
+        .context("predicting the test set")?;
+    let inference_ms = if test_samples.is_empty() {
+        0.0
+    } else {
+        t0.elapsed().as_secs_f64() * 1e3 / test_samples.len() as f64
+    };
+    let test = figures(&gdm.evaluate(&test_samples, opts)?);
+    let test_no_context =
+        figures(&gdm.evaluate(&test_samples, PredictOptions { no_context: true })?);
+    let new_samples = data.samples(&plan.new_instance);
+    let new_instance = if new_samples.is_empty() {
+        None
+    } else {
+        Some(figures(&gdm.evaluate(&new_samples, opts)?))
+    };
+    let n_cat = data.category_names.len();
+    let mut hits = vec![0usize; n_cat];
+    let mut totals = vec![0usize; n_cat];
+    for (sample, p) in test_samples.iter().zip(&predictions) {
+        let c = sample.category.unwrap_or(0) as usize;
+        if c < n_cat {
+            totals[c] += 1;
+            hits[c] += usize::from(p.category == sample.category);
+        }
+    }
+    let per_category_test_accuracy = hits
+        .iter()
+        .zip(&totals)
+        .map(|(&h, &t)| {
+            if t == 0 {
+                None
+            } else {
+                Some(h as f64 / t as f64)
+            }
+        })
+        .collect();
+    let record = TrialRecord {
+        trial,
+        seed: s.seed,
+        held_out_instances: plan.held_out_instances.clone(),
+        step_labels: plan.steps.iter().map(|st| st.label.clone()).collect(),
+        steps,
+        test,
+        test_no_context,
+        new_instance,
+        per_category_test_accuracy,
+        episodic_nodes: gdm.episodic().len(),
+        semantic_nodes: gdm.semantic().len(),
+        model_size_bytes: gdm.size_bytes(),
+        inference_ms_per_sample: inference_ms,
+        train_seconds,
+    };
+    Ok((gdm, record))
+}

@@ -1,0 +1,516 @@
+//! The paper's learning protocols as plans: which training sequences each learning step sees,
+//! in what order, and what each step is evaluated on.
+//!
+//! A plan is built per trial from the rows' labels alone (collection, category, instance,
+//! sequence, frame) and a seeded RNG, so the same seed gives the same plan.
+//!
+//! Definitions (also in the README, "Scenarios"):
+//! - **held-out instances**: in every trial, one instance per category (chosen at random, only
+//!   where the category has at least two) is never trained on; its views in every collection
+//!   form the "new instance" set (category accuracy only).
+//! - **train rows**: the training collections (manifest split `train`, 12 of 15) of the other
+//!   instances. **test rows**: the test collections (3 of 15) of the same instances.
+//! - **batch**: E steps (epochs), each over all train rows; collections in an order shuffled
+//!   per trial, sequences shuffled within a collection.
+//! - **incremental**: one step per category (category order shuffled per trial); each step is
+//!   evaluated on the train and test rows of every category seen so far.
+//! - **ni**: the first training collection (in a per-trial shuffled order), then one training
+//!   collection per step (12 steps).
+//! - **nc**: categories in a shuffled order, steps of 4, 2, 2, 2 categories (all training
+//!   collections); with other category counts: 4 first, then 2 at a time.
+//! - **nic**: a first step with the sequences of 4 categories from the first training
+//!   collection, then steps of 2 sequences each until every training sequence has been seen;
+//!   the other categories enter the stream gradually (each at a random point in the first half
+//!   of it). Steps = 1 + ceil(rest / 2).
+//!
+//! ni, nc and nic evaluate on the test rows of all categories, as the paper does.
+
+use rand::seq::SliceRandom;
+use rand::{Rng, RngExt};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// A learning protocol of the paper.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Scenario {
+    /// All training collections, several epochs.
+    Batch,
+    /// One category per episode.
+    Incremental,
+    /// New instances: one training collection per step.
+    Ni,
+    /// New categories: 4, then 2 at a time.
+    Nc,
+    /// New instances and categories: small steps of two sequences.
+    Nic,
+}
+
+impl Scenario {
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scenario::Batch => "batch",
+            Scenario::Incremental => "incremental",
+            Scenario::Ni => "ni",
+            Scenario::Nc => "nc",
+            Scenario::Nic => "nic",
+        }
+    }
+
+    /// Whether intrinsic replay is on unless the user says otherwise.
+    pub fn replay_by_default(self) -> bool {
+        !matches!(self, Scenario::Batch)
+    }
+
+    /// The GDM preset this scenario uses unless the user says otherwise.
+    pub fn default_preset(self) -> &'static str {
+        match self {
+            Scenario::Batch => "paper_batch",
+            _ => "paper_incremental",
+        }
+    }
+
+    /// Learning epochs per step unless the user says otherwise.
+    pub fn default_epochs(self) -> usize {
+        match self {
+            Scenario::Batch => 35,
+            _ => 1,
+        }
+    }
+}
+
+/// Labels of every row of a feature table, column-wise.
+#[derive(Clone, Copy, Debug)]
+pub struct Rows<'a> {
+    /// Collection index of each row.
+    pub collection: &'a [u32],
+    /// Category id of each row.
+    pub category: &'a [u32],
+    /// Global instance id of each row.
+    pub instance: &'a [u32],
+    /// Sequence id of each row (one object in one collection).
+    pub sequence: &'a [u64],
+    /// Frame index of each row within its sequence.
+    pub frame: &'a [u32],
+}
+
+impl Rows<'_> {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.sequence.len()
+    }
+}
+
+/// What a step is evaluated on.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EvalScope {
+    /// Every category.
+    All,
+    /// Only the categories seen so far.
+    SeenCategories,
+}
+
+/// One learning step (an epoch of batch learning, or an episode / mini-batch).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Step {
+    /// Human-readable description ("collection 4", "categories mug, bowl", ...).
+    pub label: String,
+    /// Training sequences of this step, in presentation order; each is a list of row indices
+    /// in frame order.
+    pub sequences: Vec<Vec<usize>>,
+}
+
+/// The plan of one trial.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// Learning steps in order.
+    pub steps: Vec<Step>,
+    /// What the steps are evaluated on.
+    pub scope: EvalScope,
+    /// Test rows (held-out collections, trained instances), sequences in order.
+    pub test: Vec<Vec<usize>>,
+    /// Rows of the held-out instances (every collection), sequences in order.
+    pub new_instance: Vec<Vec<usize>>,
+    /// The held-out instance ids.
+    pub held_out_instances: Vec<u32>,
+}
+
+/// Builds a trial's plan.
+///
+/// `train_collections` and `test_collections` come from the manifest's split;
+/// `category_names` gives the step labels.
+pub fn plan(
+    scenario: Scenario,
+    rows: Rows<'_>,
+    train_collections: &[u32],
+    test_collections: &[u32],
+    category_names: &[String],
+    epochs: usize,
+    rng: &mut impl Rng,
+) -> Plan {
+    // Group rows into sequences (BTreeMap: deterministic order), frames in order.
+    let mut by_sequence: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
+    for i in 0..rows.len() {
+        by_sequence.entry(rows.sequence[i]).or_default().push(i);
+    }
+    for seq in by_sequence.values_mut() {
+        seq.sort_by_key(|&i| rows.frame[i]);
+    }
+    let sequences: Vec<Vec<usize>> = by_sequence.into_values().collect();
+
+    // Held-out instances: one per category with at least two instances.
+    let mut instances_of: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+    for i in 0..rows.len() {
+        instances_of
+            .entry(rows.category[i])
+            .or_default()
+            .insert(rows.instance[i]);
+    }
+    let mut held_out_instances = Vec::new();
+    for set in instances_of.values() {
+        if set.len() >= 2 {
+            let list: Vec<u32> = set.iter().copied().collect();
+            held_out_instances.push(list[rng.random_range(0..list.len())]);
+        }
+    }
+    let held: BTreeSet<u32> = held_out_instances.iter().copied().collect();
+
+    let first = |s: &Vec<usize>| s[0];
+    let is_held = |s: &Vec<usize>| held.contains(&rows.instance[first(s)]);
+    let in_collections = |s: &Vec<usize>, cs: &[u32]| cs.contains(&rows.collection[first(s)]);
+
+    let train: Vec<&Vec<usize>> = sequences
+        .iter()
+        .filter(|s| !is_held(s) && in_collections(s, train_collections))
+        .collect();
+    let test: Vec<Vec<usize>> = sequences
+        .iter()
+        .filter(|s| !is_held(s) && in_collections(s, test_collections))
+        .cloned()
+        .collect();
+    let new_instance: Vec<Vec<usize>> = sequences.iter().filter(|s| is_held(s)).cloned().collect();
+
+    let category_of = |s: &Vec<usize>| rows.category[first(s)];
+    let collection_of = |s: &Vec<usize>| rows.collection[first(s)];
+    let cat_name = |c: u32| {
+        category_names
+            .get(c as usize)
+            .cloned()
+            .unwrap_or_else(|| format!("category {c}"))
+    };
+    let mut categories: Vec<u32> = train
+        .iter()
+        .map(|s| category_of(s))
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut collections: Vec<u32> = train_collections.to_vec();
+    collections.sort_unstable();
+    collections.dedup();
+
+    // Sequences matching a predicate, shuffled.
+    let pick = |pred: &dyn Fn(&Vec<usize>) -> bool, rng: &mut dyn rand::Rng| {
+        let mut out: Vec<Vec<usize>> = train
+            .iter()
+            .filter(|s| pred(s))
+            .map(|s| (*s).clone())
+            .collect();
+        out.shuffle(rng);
+        out
+    };
+
+    let (steps, scope) = match scenario {
+        Scenario::Batch => {
+            collections.shuffle(rng);
+            let mut all = Vec::new();
+            for &c in &collections {
+                all.extend(pick(&|s| collection_of(s) == c, rng));
+            }
+            let steps = (0..epochs.max(1))
+                .map(|e| Step {
+                    label: format!("epoch {}", e + 1),
+                    sequences: all.clone(),
+                })
+                .collect();
+            (steps, EvalScope::All)
+        }
+        Scenario::Incremental => {
+            categories.shuffle(rng);
+            let steps = categories
+                .iter()
+                .map(|&c| Step {
+                    label: cat_name(c),
+                    sequences: pick(&|s| category_of(s) == c, rng),
+                })
+                .collect();
+            (steps, EvalScope::SeenCategories)
+        }
+        Scenario::Ni => {
+            collections.shuffle(rng);
+            let steps = collections
+                .iter()
+                .map(|&c| Step {
+                    label: format!("collection {c}"),
+                    sequences: pick(&|s| collection_of(s) == c, rng),
+                })
+                .collect();
+            (steps, EvalScope::All)
+        }
+        Scenario::Nc => {
+            categories.shuffle(rng);
+            let mut steps = Vec::new();
+            let mut rest: &[u32] = &categories;
+            let mut size = 4;
+            while !rest.is_empty() {
+                let take = size.min(rest.len());
+                let (now, later) = rest.split_at(take);
+                let names: Vec<String> = now.iter().map(|&c| cat_name(c)).collect();
+                steps.push(Step {
+                    label: names.join(", "),
+                    sequences: pick(&|s| now.contains(&category_of(s)), rng),
+                });
+                rest = later;
+                size = 2;
+            }
+            (steps, EvalScope::All)
+        }
+        Scenario::Nic => {
+            categories.shuffle(rng);
+            collections.shuffle(rng);
+            let first_cats: Vec<u32> = categories.iter().take(4).copied().collect();
+            let first_coll = collections.first().copied();
+            let in_first = |s: &Vec<usize>| {
+                first_cats.contains(&category_of(s)) && Some(collection_of(s)) == first_coll
+            };
+            let mut steps = vec![Step {
+                label: format!(
+                    "categories {} (collection {})",
+                    first_cats
+                        .iter()
+                        .map(|&c| cat_name(c))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    first_coll.unwrap_or(0)
+                ),
+                sequences: pick(&in_first, rng),
+            }];
+            // Each later category enters at a random point in the first half of the stream.
+            let entry: BTreeMap<u32, f64> = categories
+                .iter()
+                .skip(4)
+                .map(|&c| (c, rng.random_range(0.0..0.5)))
+                .collect();
+            let mut rest: Vec<(f64, Vec<usize>)> = train
+                .iter()
+                .filter(|s| !in_first(s))
+                .map(|s| {
+                    let key: f64 = rng.random_range(0.0..1.0);
+                    let key = entry
+                        .get(&category_of(s))
+                        .map_or(key, |&e| e + key * (1.0 - e));
+                    (key, (*s).clone())
+                })
+                .collect();
+            rest.sort_by(|a, b| a.0.total_cmp(&b.0));
+            for (k, pair) in rest.chunks(2).enumerate() {
+                steps.push(Step {
+                    label: format!("mini-batch {}", k + 2),
+                    sequences: pair.iter().map(|(_, s)| s.clone()).collect(),
+                });
+            }
+            (steps, EvalScope::All)
+        }
+    };
+
+    Plan {
+        steps,
+        scope,
+        test,
+        new_instance,
+        held_out_instances,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// 15 collections × 10 categories × 3 instances × 4 frames.
+    struct Fixture {
+        collection: Vec<u32>,
+        category: Vec<u32>,
+        instance: Vec<u32>,
+        sequence: Vec<u64>,
+        frame: Vec<u32>,
+    }
+
+    fn fixture() -> Fixture {
+        let mut f = Fixture {
+            collection: vec![],
+            category: vec![],
+            instance: vec![],
+            sequence: vec![],
+            frame: vec![],
+        };
+        for c in 0..15u32 {
+            for inst in 0..30u32 {
+                for fr in 0..4u32 {
+                    f.collection.push(c);
+                    f.category.push(inst / 3);
+                    f.instance.push(inst);
+                    f.sequence.push(u64::from(c) * 1000 + u64::from(inst));
+                    f.frame.push(3 - fr); // stored out of order on purpose
+                }
+            }
+        }
+        f
+    }
+
+    fn rows(f: &Fixture) -> Rows<'_> {
+        Rows {
+            collection: &f.collection,
+            category: &f.category,
+            instance: &f.instance,
+            sequence: &f.sequence,
+            frame: &f.frame,
+        }
+    }
+
+    fn build(s: Scenario, seed: u64) -> (Fixture, Plan) {
+        let f = fixture();
+        let names: Vec<String> = (0..10).map(|c| format!("c{c}")).collect();
+        let train: Vec<u32> = (0..12).collect();
+        let test: Vec<u32> = (12..15).collect();
+        let p = plan(
+            s,
+            rows(&f),
+            &train,
+            &test,
+            &names,
+            3,
+            &mut ChaCha8Rng::seed_from_u64(seed),
+        );
+        (f, p)
+    }
+
+    fn trained_sequences(p: &Plan) -> BTreeSet<Vec<usize>> {
+        p.steps
+            .iter()
+            .flat_map(|s| s.sequences.iter().cloned())
+            .collect()
+    }
+
+    #[test]
+    fn held_out_instances_are_never_trained_and_one_per_category() {
+        for s in [
+            Scenario::Batch,
+            Scenario::Incremental,
+            Scenario::Ni,
+            Scenario::Nc,
+            Scenario::Nic,
+        ] {
+            let (f, p) = build(s, 7);
+            assert_eq!(p.held_out_instances.len(), 10);
+            let cats: BTreeSet<u32> = p.held_out_instances.iter().map(|&i| i / 3).collect();
+            assert_eq!(cats.len(), 10);
+            for step in &p.steps {
+                for seq in &step.sequences {
+                    assert!(!p.held_out_instances.contains(&f.instance[seq[0]]));
+                    assert!(
+                        f.collection[seq[0]] < 12,
+                        "{s:?} trains on a test collection"
+                    );
+                }
+            }
+            for seq in &p.test {
+                assert!(f.collection[seq[0]] >= 12);
+            }
+            assert_eq!(p.new_instance.len(), 15 * 10);
+        }
+    }
+
+    #[test]
+    fn sequences_are_in_frame_order() {
+        let (f, p) = build(Scenario::Ni, 1);
+        for seq in p.steps.iter().flat_map(|s| &s.sequences) {
+            let frames: Vec<u32> = seq.iter().map(|&i| f.frame[i]).collect();
+            assert_eq!(frames, vec![0, 1, 2, 3]);
+        }
+    }
+
+    #[test]
+    fn every_scenario_but_batch_trains_each_sequence_exactly_once() {
+        for s in [
+            Scenario::Incremental,
+            Scenario::Ni,
+            Scenario::Nc,
+            Scenario::Nic,
+        ] {
+            let (_, p) = build(s, 3);
+            let total: usize = p.steps.iter().map(|s| s.sequences.len()).sum();
+            assert_eq!(total, 12 * 20, "{s:?}");
+            assert_eq!(trained_sequences(&p).len(), 12 * 20, "{s:?}");
+        }
+    }
+
+    #[test]
+    fn step_shapes_match_the_protocols() {
+        let (f, p) = build(Scenario::Batch, 2);
+        assert_eq!(p.steps.len(), 3);
+        assert_eq!(p.steps[0].sequences.len(), 240);
+
+        let (f2, p) = build(Scenario::Incremental, 2);
+        assert_eq!(p.steps.len(), 10);
+        for step in &p.steps {
+            let cats: BTreeSet<u32> = step.sequences.iter().map(|s| f2.category[s[0]]).collect();
+            assert_eq!(cats.len(), 1);
+        }
+        assert_eq!(p.scope, EvalScope::SeenCategories);
+
+        let (f3, p) = build(Scenario::Ni, 2);
+        assert_eq!(p.steps.len(), 12);
+        for step in &p.steps {
+            let colls: BTreeSet<u32> = step.sequences.iter().map(|s| f3.collection[s[0]]).collect();
+            assert_eq!(colls.len(), 1);
+        }
+
+        let (f4, p) = build(Scenario::Nc, 2);
+        let sizes: Vec<usize> = p
+            .steps
+            .iter()
+            .map(|st| {
+                st.sequences
+                    .iter()
+                    .map(|s| f4.category[s[0]])
+                    .collect::<BTreeSet<_>>()
+                    .len()
+            })
+            .collect();
+        assert_eq!(sizes, vec![4, 2, 2, 2]);
+
+        let (f5, p) = build(Scenario::Nic, 2);
+        let first: BTreeSet<u32> = p.steps[0]
+            .sequences
+            .iter()
+            .map(|s| f5.category[s[0]])
+            .collect();
+        assert_eq!(first.len(), 4);
+        assert_eq!(p.steps[0].sequences.len(), 8); // 4 categories × 2 trained instances
+        assert!(p.steps[1..].iter().all(|s| s.sequences.len() <= 2));
+        assert_eq!(p.steps.len(), 1 + (240 - 8usize).div_ceil(2));
+        let _ = f;
+    }
+
+    #[test]
+    fn same_seed_same_plan_other_seed_other_order() {
+        let (_, a) = build(Scenario::Nic, 11);
+        let (_, b) = build(Scenario::Nic, 11);
+        let (_, c) = build(Scenario::Nic, 12);
+        assert_eq!(a.steps, b.steps);
+        assert_ne!(a.steps, c.steps);
+    }
+}
