@@ -136,9 +136,9 @@ def test_normalisation():
 
 def test_rotation_moves_image_and_labels_together(fixture_dir):
     ds = GraspDataset(find_samples(fixture_dir), input_size=112, augment=False)
-    x0, y0, r0 = ds.render(1, zoom=0.8, rot90=0)
+    x0, y0, r0 = ds.render(1, zoom=0.8, rot90=0, center_on_grasps=True)
     for k in (1, 2, 3):
-        x, y, r = ds.render(1, zoom=0.8, rot90=k)
+        x, y, r = ds.render(1, zoom=0.8, rot90=k, center_on_grasps=True)
         np.testing.assert_allclose(x, np.rot90(x0, k, axes=(1, 2)), atol=1e-6)
         np.testing.assert_array_equal(y[0], np.rot90(y0[0], k))
         np.testing.assert_allclose(r[0].angle % math.pi, (r0[0].angle + k * math.pi / 2) % math.pi,
@@ -152,7 +152,7 @@ def test_zoom_keeps_rectangles_on_their_object(fixture_dir, zoom):
     samples = find_samples(fixture_dir)
     ds = GraspDataset(samples, input_size=112, augment=False)
     for i in range(len(samples)):
-        x, y, rects = ds.render(i, zoom=zoom, rot90=i % 4)
+        x, y, rects = ds.render(i, zoom=zoom, rot90=i % 4, center_on_grasps=True)
         g = rects[0]
         rgb, _ = load_images(samples[i])
         scale = 112 / (min(rgb.shape[:2]) * zoom)
@@ -170,3 +170,15 @@ def test_augmentation_is_seeded_by_seed_epoch_and_index(fixture_dir):
     np.testing.assert_array_equal(a.item(2, epoch=1)[0], b.item(2, epoch=1)[0])
     draws = {a.item(2, epoch=e)[0].tobytes() for e in range(4)}
     assert len(draws) > 1
+
+
+def test_evaluation_input_does_not_depend_on_the_labels(fixture_dir, tmp_path):
+    root = tmp_path / "data"
+    shutil.copytree(fixture_dir / "02", root / "02")
+    ds = GraspDataset(find_samples(root), 112, augment=False)
+    before = ds.item(0)[0]
+    cpos = root / "02" / "pcd0003cpos.txt"
+    far = GraspRectangle(150, 10, 0.0, 20, 10)  # near the right edge of the 160-px image
+    cpos.write_text("".join(f"{x} {y}\n" for x, y in far.corners()))
+    np.testing.assert_array_equal(ds.item(0)[0], before)
+    assert not np.array_equal(GraspDataset(ds.samples, 112, augment=True).item(0)[0], before)

@@ -263,11 +263,12 @@ def _fill_nonfinite(depth: np.ndarray) -> np.ndarray:
 class GraspDataset:
     """Samples turned into network inputs and targets, with seeded augmentation.
 
-    Without augmentation each image is cropped to the centred square of its shorter side
-    (shifted to follow the grasps' centre within the image) and resized to ``input_size``. With
-    augmentation the crop side is additionally scaled by a zoom in ``ZOOM_RANGE`` and the result
-    is rotated by a random multiple of 90°; the rectangles go through the same transform. The
-    random draw depends only on (seed, epoch, index), so results do not depend on batch order.
+    Without augmentation (evaluation) each image is cropped to the centred square of its shorter
+    side and resized to ``input_size``: the labels never frame a test input. With augmentation
+    (training) the square is centred on the mean centre of the positive rectangles (kept inside
+    the image), its side scaled by a zoom drawn from ``ZOOM_RANGE``, and the result rotated by a
+    random multiple of 90°. Rectangles go through the same transform as the image. The random
+    draw depends only on (seed, epoch, index), so results do not depend on batch order.
     """
 
     def __init__(self, samples: list[Sample], input_size: int, augment: bool, seed: int = 0):
@@ -287,12 +288,13 @@ class GraspDataset:
             rng = np.random.default_rng([self.seed, epoch, index])
             zoom = float(rng.uniform(*ZOOM_RANGE))
             rot = int(rng.integers(0, 4))
-        return self.render(index, zoom, rot)
+        return self.render(index, zoom, rot, center_on_grasps=self.augment)
 
-    def render(self, index: int, zoom: float = 1.0, rot90: int = 0
+    def render(self, index: int, zoom: float = 1.0, rot90: int = 0,
+               center_on_grasps: bool = False
                ) -> tuple[np.ndarray, np.ndarray, list[GraspRectangle]]:
-        """``item`` with an explicit zoom (crop side / shorter image side, in (0, 1]) and number
-        of counter-clockwise quarter turns."""
+        """``item`` with an explicit zoom (crop side / shorter image side, in (0, 1]), number
+        of counter-clockwise quarter turns and crop centre (grasps' or image's)."""
         if not 0 < zoom <= 1:
             raise ValueError(f"zoom must be in (0, 1], got {zoom}")
         rot = rot90 % 4
@@ -301,7 +303,7 @@ class GraspDataset:
         rects = load_rectangles(sample).positives
         h, w = depth.shape
         side = min(h, w) * zoom
-        if rects:
+        if rects and center_on_grasps:
             cx = float(np.mean([r.center_x for r in rects]))
             cy = float(np.mean([r.center_y for r in rects]))
         else:
