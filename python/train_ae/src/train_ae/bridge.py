@@ -13,7 +13,7 @@
         atan2(sin2t, cos2t) / 2, counter-clockwise on screen from +x (see ``train_ae.grasp``).
 
 All arrays are C-contiguous numpy arrays; ``infer`` reads its input without copying when it is
-already C-contiguous float32, and the outputs share memory with the torch results.
+already C-contiguous float32; each output is one fresh array (no per-pixel Python work).
 
 Example::
 
