@@ -55,6 +55,10 @@ pub struct Args {
     /// Evaluate on the test set after every n-th step (default: often enough for ~25 points).
     #[arg(long)]
     pub eval_every: Option<usize>,
+    /// Validation mode for choosing hyperparameters: the last two training collections (in
+    /// manifest order) stand in for the test set and the test collections are not touched.
+    #[arg(long)]
+    pub validate: bool,
     /// Base seed; trial t uses seed + t.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -85,6 +89,8 @@ pub struct RunConfig {
     pub epochs: usize,
     /// Evaluation period in steps.
     pub eval_every: usize,
+    /// Validation mode: the evaluation set is two training collections, not the test set.
+    pub validate: bool,
     /// Where the hyperparameters came from.
     pub hyperparameters_from: String,
     /// The dual memory's hyperparameters.
@@ -190,6 +196,18 @@ pub fn run(args: Args) -> Result<()> {
         test_collections: split(lgdm_pointcloud::dataset::Split::Test),
         category_names: manifest.categories.clone(),
     };
+    let mut run_data = run_data;
+    if args.validate {
+        if run_data.train_collections.len() < 3 {
+            bail!("--validate needs at least three training collections");
+        }
+        let k = run_data.train_collections.len() - 2;
+        run_data.test_collections = run_data.train_collections.split_off(k);
+        reporter.message(&format!(
+            "validation mode: collections {:?} are the evaluation set; the test collections are not used",
+            run_data.test_collections
+        ));
+    }
     if run_data.train_collections.is_empty() || run_data.test_collections.is_empty() {
         bail!("the dataset needs both training and test collections (see its manifest.json)");
     }
@@ -221,6 +239,7 @@ pub fn run(args: Args) -> Result<()> {
         replay,
         epochs,
         eval_every,
+        validate: args.validate,
         hyperparameters_from: from,
         gdm: config,
     };

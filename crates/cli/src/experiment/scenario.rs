@@ -7,7 +7,7 @@
 //! Definitions (also in the README, "Scenarios"):
 //! - **held-out instances**: in every trial, one instance per category (chosen at random, only
 //!   where the category has at least two) is never trained on; its views in every collection
-//!   form the "new instance" set (category accuracy only).
+//!   form the "new instance" set (category accuracy only), in the training and test collections.
 //! - **train rows**: the training collections (manifest split `train`, 12 of 15) of the other
 //!   instances. **test rows**: the test collections (3 of 15) of the same instances.
 //! - **batch**: E steps (epochs), each over all train rows; collections in an order shuffled
@@ -190,7 +190,16 @@ pub fn plan(
         .filter(|s| !is_held(s) && in_collections(s, test_collections))
         .cloned()
         .collect();
-    let new_instance: Vec<Vec<usize>> = sequences.iter().filter(|s| is_held(s)).cloned().collect();
+    // Held-out instances in the collections this run may use (all of them, except in
+    // validation mode, where the caller passes validation collections as the test set).
+    let new_instance: Vec<Vec<usize>> = sequences
+        .iter()
+        .filter(|s| {
+            is_held(s)
+                && (in_collections(s, train_collections) || in_collections(s, test_collections))
+        })
+        .cloned()
+        .collect();
 
     let category_of = |s: &Vec<usize>| rows.category[first(s)];
     let collection_of = |s: &Vec<usize>| rows.collection[first(s)];
