@@ -1,0 +1,604 @@
+//! MCAP collection files: `foxglove.PointCloud` encoding and decoding, the collection writer
+//! and the streaming, validating [`SequenceReader`].
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Read};
+use std::path::{Path, PathBuf};
+
+use foxglove::Encode;
+use foxglove::messages::packed_element_field::NumericType;
+use foxglove::messages::{PackedElementField, Pose as FgPose, Quaternion, Timestamp, Vector3};
+use mcap::records::{MessageHeader, Record};
+use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use prost::Message as _;
+
+use super::{DatasetError, Manifest, PointCloud, Sequence};
+
+/// `frame_id` of every point cloud: the turntable camera's optical frame.
+pub const POINT_CLOUD_FRAME_ID: &str = "camera_optical";
+
+/// Name, encoding and descriptor bytes of the `foxglove.PointCloud` schema.
+pub fn point_cloud_schema() -> (String, String, Vec<u8>) {
+    let schema =
+        foxglove::messages::PointCloud::get_schema().expect("foxglove.PointCloud has a schema");
+    (schema.name, schema.encoding, schema.data.into_owned())
+}
+
+fn field(name: &str, offset: u32, ty: NumericType) -> PackedElementField {
+    PackedElementField {
+        name: name.to_string(),
+        offset,
+        r#type: ty as i32,
+    }
+}
+
+/// Encodes a cloud as a `foxglove.PointCloud` protobuf message: `x, y, z` float32 at offsets
+/// 0/4/8 and, with colours, `red, green, blue, alpha` uint8 at 12..16 (stride 16, else 12).
+pub fn encode_point_cloud(cloud: &PointCloud, timestamp_ns: u64) -> Vec<u8> {
+    let with_color = cloud.colors.is_some();
+    let stride = if with_color { 16 } else { 12 };
+    let mut data = Vec::with_capacity(cloud.len() * stride);
+    for (i, p) in cloud.points.iter().enumerate() {
+        for v in p {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        if let Some(c) = &cloud.colors {
+            data.extend_from_slice(&[c[i][0], c[i][1], c[i][2], 255]);
+        }
+    }
+    let mut fields = vec![
+        field("x", 0, NumericType::Float32),
+        field("y", 4, NumericType::Float32),
+        field("z", 8, NumericType::Float32),
+    ];
+    if with_color {
+        fields.extend([
+            field("red", 12, NumericType::Uint8),
+            field("green", 13, NumericType::Uint8),
+            field("blue", 14, NumericType::Uint8),
+            field("alpha", 15, NumericType::Uint8),
+        ]);
+    }
+    let msg = foxglove::messages::PointCloud {
+        timestamp: Some(Timestamp::new(
+            (timestamp_ns / 1_000_000_000) as u32,
+            (timestamp_ns % 1_000_000_000) as u32,
+        )),
+        frame_id: POINT_CLOUD_FRAME_ID.to_string(),
+        pose: Some(FgPose {
+            position: Some(Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            }),
+            orientation: Some(Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                w: 1.0,
+            }),
+        }),
+        point_stride: stride as u32,
+        fields,
+        data: data.into(),
+    };
+    msg.encode_to_vec()
+}
+
+/// Decodes a `foxglove.PointCloud` message written by [`encode_point_cloud`] (or any message
+/// with float32 `x, y, z` and optional uint8 `red, green, blue` fields).
+pub fn decode_point_cloud(bytes: &[u8]) -> Result<PointCloud, String> {
+    let msg = foxglove::messages::PointCloud::decode(bytes)
+        .map_err(|e| format!("protobuf decode: {e}"))?;
+    let stride = msg.point_stride as usize;
+    let find = |name: &str| msg.fields.iter().find(|f| f.name == name);
+    let mut xyz = [0usize; 3];
+    for (k, name) in ["x", "y", "z"].into_iter().enumerate() {
+        let f = find(name).ok_or_else(|| format!("point field `{name}` missing"))?;
+        if f.r#type != NumericType::Float32 as i32 {
+            return Err(format!("point field `{name}` is not float32"));
+        }
+        xyz[k] = f.offset as usize;
+        if xyz[k] + 4 > stride {
+            return Err(format!(
+                "point field `{name}` lies outside the stride {stride}"
+            ));
+        }
+    }
+    let mut rgb = [0usize; 3];
+    let mut with_color = true;
+    for (k, name) in ["red", "green", "blue"].into_iter().enumerate() {
+        match find(name) {
+            Some(f) if f.r#type == NumericType::Uint8 as i32 && (f.offset as usize) < stride => {
+                rgb[k] = f.offset as usize;
+            }
+            Some(_) => {
+                return Err(format!(
+                    "colour field `{name}` is not uint8 inside the stride"
+                ));
+            }
+            None => with_color = false,
+        }
+    }
+    if stride == 0 || msg.data.len() % stride != 0 {
+        return Err(format!(
+            "data length {} is not a multiple of the stride {stride}",
+            msg.data.len()
+        ));
+    }
+    let n = msg.data.len() / stride;
+    let mut points = Vec::with_capacity(n);
+    let mut colors = with_color.then(|| Vec::with_capacity(n));
+    let f32_at =
+        |rec: &[u8], o: usize| f32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]);
+    for (i, rec) in msg.data.chunks_exact(stride).enumerate() {
+        let p = [
+            f32_at(rec, xyz[0]),
+            f32_at(rec, xyz[1]),
+            f32_at(rec, xyz[2]),
+        ];
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(format!("point {i} has a non-finite coordinate"));
+        }
+        points.push(p);
+        if let Some(c) = colors.as_mut() {
+            c.push([rec[rgb[0]], rec[rgb[1]], rec[rgb[2]]]);
+        }
+    }
+    Ok(PointCloud::new(points, colors))
+}
+
+/// Labels of one object sequence, as stored in its channel's metadata.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ChannelLabels {
+    pub collection: u32,
+    pub category: u32,
+    pub instance: u32,
+    pub frames: usize,
+}
+
+impl ChannelLabels {
+    fn to_metadata(&self, category_name: &str, instance_name: &str) -> BTreeMap<String, String> {
+        BTreeMap::from([
+            ("collection".to_string(), self.collection.to_string()),
+            ("category".to_string(), self.category.to_string()),
+            ("category_name".to_string(), category_name.to_string()),
+            ("instance".to_string(), self.instance.to_string()),
+            ("instance_name".to_string(), instance_name.to_string()),
+            ("frames".to_string(), self.frames.to_string()),
+        ])
+    }
+
+    fn from_metadata(m: &BTreeMap<String, String>) -> Result<Self, String> {
+        let num = |key: &str| -> Result<u64, String> {
+            m.get(key)
+                .ok_or_else(|| format!("channel metadata lacks `{key}`"))?
+                .parse::<u64>()
+                .map_err(|e| format!("channel metadata `{key}`: {e}"))
+        };
+        let small = |key: &str| -> Result<u32, String> {
+            u32::try_from(num(key)?).map_err(|_| format!("channel metadata `{key}` too large"))
+        };
+        Ok(Self {
+            collection: small("collection")?,
+            category: small("category")?,
+            instance: small("instance")?,
+            frames: usize::try_from(num("frames")?).map_err(|_| "frames too large".to_string())?,
+        })
+    }
+}
+
+/// Writes one collection file: a temp file that becomes `path` only on [`finish`].
+pub(crate) struct CollectionWriter {
+    writer: mcap::Writer<BufWriter<File>>,
+    schema_id: u16,
+    tmp: PathBuf,
+    path: PathBuf,
+    nanos_per_frame: u64,
+}
+
+impl CollectionWriter {
+    pub fn create(
+        path: &Path,
+        fps: f32,
+        metadata: BTreeMap<String, String>,
+    ) -> Result<Self, DatasetError> {
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or("collection.mcap");
+        let tmp = path.with_file_name(format!(".{name}.tmp"));
+        let file = File::create(&tmp).map_err(|e| DatasetError::io(&tmp, e))?;
+        let mcap_err = |e: mcap::McapError| DatasetError::Corrupt {
+            path: tmp.clone(),
+            reason: format!("writing MCAP: {e}"),
+        };
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .library(concat!("lgdm-pointcloud/", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::with_capacity(1 << 20, file))
+            .map_err(mcap_err)?;
+        let (name, encoding, data) = point_cloud_schema();
+        let schema_id = writer
+            .add_schema(&name, &encoding, &data)
+            .map_err(mcap_err)?;
+        writer
+            .write_metadata(&mcap::records::Metadata {
+                name: "lgdm.collection".into(),
+                metadata,
+            })
+            .map_err(mcap_err)?;
+        Ok(Self {
+            writer,
+            schema_id,
+            tmp: tmp.clone(),
+            path: path.to_path_buf(),
+            nanos_per_frame: (1e9 / f64::from(fps)).round() as u64,
+        })
+    }
+
+    fn err(&self, e: mcap::McapError) -> DatasetError {
+        DatasetError::Corrupt {
+            path: self.tmp.clone(),
+            reason: format!("writing MCAP: {e}"),
+        }
+    }
+
+    /// Adds a channel for one object sequence; returns its id.
+    pub fn add_sequence(
+        &mut self,
+        labels: &ChannelLabels,
+        category_name: &str,
+        instance_name: &str,
+    ) -> Result<u16, DatasetError> {
+        let topic = format!("/{category_name}/{instance_name}");
+        let meta = labels.to_metadata(category_name, instance_name);
+        self.writer
+            .add_channel(self.schema_id, &topic, "protobuf", &meta)
+            .map_err(|e| self.err(e))
+    }
+
+    /// Writes frame `frame` of the sequence on `channel`.
+    pub fn write_frame(
+        &mut self,
+        channel: u16,
+        frame: u32,
+        cloud: &PointCloud,
+    ) -> Result<(), DatasetError> {
+        let t = u64::from(frame) * self.nanos_per_frame;
+        let data = encode_point_cloud(cloud, t);
+        self.writer
+            .write_to_known_channel(
+                &MessageHeader {
+                    channel_id: channel,
+                    sequence: frame,
+                    log_time: t,
+                    publish_time: t,
+                },
+                &data,
+            )
+            .map_err(|e| self.err(e))
+    }
+
+    /// Finishes the file and renames it into place; returns its size in bytes.
+    pub fn finish(mut self) -> Result<u64, DatasetError> {
+        self.writer.finish().map_err(|e| self.err(e))?;
+        let buf = self.writer.into_inner();
+        let file = buf
+            .into_inner()
+            .map_err(|e| DatasetError::io(&self.tmp, e.into_error()))?;
+        file.sync_all()
+            .map_err(|e| DatasetError::io(&self.tmp, e))?;
+        let bytes = file
+            .metadata()
+            .map_err(|e| DatasetError::io(&self.tmp, e))?
+            .len();
+        drop(file);
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| DatasetError::io(&self.path, e))?;
+        Ok(bytes)
+    }
+
+    /// Removes the temp file (after a failure).
+    pub fn abandon(self) {
+        let tmp = self.tmp.clone();
+        drop(self);
+        let _ = std::fs::remove_file(tmp);
+    }
+}
+
+/// What the reader checks each sequence against.
+#[derive(Debug, Clone)]
+struct Expected {
+    collection: u32,
+    frames: usize,
+    /// Category of each instance.
+    categories: Vec<u32>,
+}
+
+/// Streams the sequences of one collection file, validating as it reads (see
+/// [`super::Dataset::sequences`]). Holds one sequence in memory at a time.
+pub struct SequenceReader {
+    path: PathBuf,
+    file: File,
+    reader: LinearReader,
+    expected: Expected,
+    point_cloud_schemas: Vec<u16>,
+    channels: BTreeMap<u16, ChannelLabels>,
+    current: Option<(u16, Sequence)>,
+    seen: Vec<bool>,
+    done: bool,
+}
+
+impl std::fmt::Debug for SequenceReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SequenceReader")
+            .field("path", &self.path)
+            .field("collection", &self.expected.collection)
+            .finish_non_exhaustive()
+    }
+}
+
+/// One record, copied out of the reader's buffer.
+enum Owned {
+    Schema {
+        id: u16,
+        ok: bool,
+        name: String,
+    },
+    Channel {
+        id: u16,
+        schema: u16,
+        encoding: String,
+        labels: Result<ChannelLabels, String>,
+    },
+    Message {
+        channel: u16,
+        frame: u32,
+        cloud: Result<PointCloud, String>,
+    },
+    Other,
+}
+
+impl SequenceReader {
+    pub(crate) fn open(
+        path: &Path,
+        collection: u32,
+        manifest: &Manifest,
+    ) -> Result<Self, DatasetError> {
+        let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
+        let options = LinearReaderOptions::default()
+            .with_validate_chunk_crcs(true)
+            .with_validate_data_section_crc(true)
+            .with_validate_summary_section_crc(true)
+            .with_record_length_limit(256 << 20);
+        Ok(Self {
+            path: path.to_path_buf(),
+            file,
+            reader: LinearReader::new_with_options(options),
+            expected: Expected {
+                collection,
+                frames: manifest.frames_per_sequence,
+                categories: manifest.instances.iter().map(|i| i.category).collect(),
+            },
+            point_cloud_schemas: Vec::new(),
+            channels: BTreeMap::new(),
+            current: None,
+            seen: vec![false; manifest.instances.len()],
+            done: false,
+        })
+    }
+
+    fn corrupt(&self, reason: impl Into<String>) -> DatasetError {
+        DatasetError::Corrupt {
+            path: self.path.clone(),
+            reason: reason.into(),
+        }
+    }
+
+    fn finish_current(&mut self) -> Result<Option<Sequence>, DatasetError> {
+        let Some((_, seq)) = self.current.take() else {
+            return Ok(None);
+        };
+        if seq.frames.len() != self.expected.frames {
+            return Err(self.corrupt(format!(
+                "sequence of instance {} has {} frames, expected {}",
+                seq.instance,
+                seq.frames.len(),
+                self.expected.frames
+            )));
+        }
+        Ok(Some(seq))
+    }
+
+    fn advance(&mut self) -> Result<Option<Sequence>, DatasetError> {
+        loop {
+            let mut read_request = None;
+            let owned = match self.reader.next_event() {
+                None => {
+                    if let Some(seq) = self.finish_current()? {
+                        return Ok(Some(seq));
+                    }
+                    if let Some(missing) = self.seen.iter().position(|&s| !s) {
+                        return Err(self.corrupt(format!("no sequence for instance {missing}")));
+                    }
+                    return Ok(None);
+                }
+                Some(Err(mcap::McapError::UnexpectedEof)) => {
+                    return Err(self.corrupt("truncated: the file ends before the MCAP footer"));
+                }
+                Some(Err(e)) => return Err(self.corrupt(format!("invalid MCAP: {e}"))),
+                Some(Ok(LinearReadEvent::ReadRequest(n))) => {
+                    read_request = Some(n);
+                    Owned::Other
+                }
+                Some(Ok(LinearReadEvent::Record { opcode, data })) => {
+                    match mcap::parse_record(opcode, data) {
+                        Err(e) => return Err(self.corrupt(format!("invalid MCAP record: {e}"))),
+                        Ok(Record::Schema { header, .. }) => Owned::Schema {
+                            id: header.id,
+                            ok: header.name == "foxglove.PointCloud"
+                                && header.encoding == "protobuf",
+                            name: header.name,
+                        },
+                        Ok(Record::Channel(ch)) => Owned::Channel {
+                            id: ch.id,
+                            schema: ch.schema_id,
+                            encoding: ch.message_encoding.clone(),
+                            labels: ChannelLabels::from_metadata(&ch.metadata),
+                        },
+                        Ok(Record::Message { header, data }) => Owned::Message {
+                            channel: header.channel_id,
+                            frame: header.sequence,
+                            cloud: decode_point_cloud(&data),
+                        },
+                        Ok(_) => Owned::Other,
+                    }
+                }
+            };
+            if let Some(n) = read_request {
+                let want = n.clamp(64 << 10, 16 << 20);
+                let buf = self.reader.insert(want);
+                let got = self
+                    .file
+                    .read(buf)
+                    .map_err(|e| DatasetError::io(&self.path, e))?;
+                self.reader.notify_read(got);
+                continue;
+            }
+            match owned {
+                Owned::Other => {}
+                Owned::Schema { id, ok, name } => {
+                    if ok {
+                        self.point_cloud_schemas.push(id);
+                    } else {
+                        return Err(self.corrupt(format!(
+                            "schema `{name}` is not protobuf foxglove.PointCloud"
+                        )));
+                    }
+                }
+                Owned::Channel {
+                    id,
+                    schema,
+                    encoding,
+                    labels,
+                } => {
+                    if self.channels.contains_key(&id) {
+                        continue; // repeated in the summary section
+                    }
+                    if !self.point_cloud_schemas.contains(&schema) || encoding != "protobuf" {
+                        return Err(self.corrupt(format!(
+                            "channel {id} is not a protobuf foxglove.PointCloud channel"
+                        )));
+                    }
+                    let labels = labels.map_err(|r| self.corrupt(format!("channel {id}: {r}")))?;
+                    let e = &self.expected;
+                    if labels.collection != e.collection {
+                        return Err(self.corrupt(format!(
+                            "channel {id} belongs to collection {}, expected {}",
+                            labels.collection, e.collection
+                        )));
+                    }
+                    match e.categories.get(labels.instance as usize) {
+                        None => {
+                            return Err(self.corrupt(format!(
+                                "channel {id}: instance {} not in the manifest ({} instances)",
+                                labels.instance,
+                                e.categories.len()
+                            )));
+                        }
+                        Some(&c) if c != labels.category => {
+                            return Err(self.corrupt(format!(
+                                "channel {id}: instance {} has category {}, the manifest says {c}",
+                                labels.instance, labels.category
+                            )));
+                        }
+                        Some(_) => {}
+                    }
+                    if labels.frames != e.frames {
+                        return Err(self.corrupt(format!(
+                            "channel {id}: {} frames, the manifest says {}",
+                            labels.frames, e.frames
+                        )));
+                    }
+                    self.channels.insert(id, labels);
+                }
+                Owned::Message {
+                    channel,
+                    frame,
+                    cloud,
+                } => {
+                    let Some(labels) = self.channels.get(&channel).cloned() else {
+                        return Err(self.corrupt(format!("message on unknown channel {channel}")));
+                    };
+                    let cloud = cloud.map_err(|r| {
+                        self.corrupt(format!("instance {} frame {frame}: {r}", labels.instance))
+                    })?;
+                    let mut finished = None;
+                    if self.current.as_ref().is_some_and(|(c, _)| *c != channel) {
+                        finished = self.finish_current()?;
+                    }
+                    if self.current.is_none() {
+                        let seen = &mut self.seen[labels.instance as usize];
+                        if *seen {
+                            return Err(self.corrupt(format!(
+                                "instance {} appears in more than one run of messages",
+                                labels.instance
+                            )));
+                        }
+                        *seen = true;
+                        self.current = Some((
+                            channel,
+                            Sequence {
+                                collection: labels.collection,
+                                category: labels.category,
+                                instance: labels.instance,
+                                frames: Vec::with_capacity(self.expected.frames),
+                            },
+                        ));
+                    }
+                    let (have, instance) = self
+                        .current
+                        .as_ref()
+                        .map(|(_, s)| (s.frames.len(), s.instance))
+                        .expect("just set");
+                    if frame as usize != have {
+                        return Err(self.corrupt(format!(
+                            "instance {instance}: frame {frame} arrives where frame {have} was expected"
+                        )));
+                    }
+                    if have >= self.expected.frames {
+                        return Err(self.corrupt(format!("instance {instance}: too many frames")));
+                    }
+                    let (_, seq) = self.current.as_mut().expect("just set");
+                    seq.frames.push(cloud);
+                    if finished.is_some() {
+                        return Ok(finished);
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Iterator for SequenceReader {
+    type Item = Result<Sequence, DatasetError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        match self.advance() {
+            Ok(Some(seq)) => Some(Ok(seq)),
+            Ok(None) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
+        }
+    }
+}

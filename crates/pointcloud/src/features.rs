@@ -1,0 +1,299 @@
+//! Feature tables: one row per view with its labels, computed with GOOD over a whole dataset
+//! and stored as `.npz` (arrays `features` (n×dim, float32), `collection`, `category`,
+//! `instance`, `frame` (uint32) and `sequence` (uint64)) so numpy reads it directly.
+//!
+//! ```no_run
+//! use lgdm_pointcloud::dataset::Dataset;
+//! use lgdm_pointcloud::features::{good_features, FeatureTable};
+//! let ds = Dataset::open("data".as_ref()).unwrap();
+//! let table = good_features(&ds, 15, &mut |_| {}).unwrap();
+//! table.write_npz("features.npz".as_ref()).unwrap();
+//! assert_eq!(FeatureTable::read_npz("features.npz".as_ref()).unwrap(), table);
+//! ```
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+
+use crate::dataset::{Dataset, DatasetError};
+use crate::good::good_descriptor_into;
+use crate::npz::{NpyRef, NpzError, read_npz, write_npz};
+use crate::progress::Progress;
+
+/// Features of many views with their labels; row `i` belongs to `collection[i]`,
+/// `category[i]`, `instance[i]`, `sequence[i]` (unique per collection × object) and `frame[i]`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FeatureTable {
+    /// Feature length.
+    pub dim: usize,
+    /// Row-major `len() × dim` values.
+    pub features: Vec<f32>,
+    /// Collection index per row.
+    pub collection: Vec<u32>,
+    /// Category id per row.
+    pub category: Vec<u32>,
+    /// Instance id per row.
+    pub instance: Vec<u32>,
+    /// Sequence id per row: `collection × instances + instance`.
+    pub sequence: Vec<u64>,
+    /// Frame index within the sequence per row.
+    pub frame: Vec<u32>,
+}
+
+impl FeatureTable {
+    /// An empty table of feature length `dim`.
+    pub fn new(dim: usize) -> Self {
+        Self {
+            dim,
+            ..Self::default()
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.collection.len()
+    }
+
+    /// Whether the table has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.collection.is_empty()
+    }
+
+    /// Features of row `i`.
+    pub fn row(&self, i: usize) -> &[f32] {
+        &self.features[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// Appends all rows of `other` (same `dim`).
+    pub fn extend(&mut self, other: FeatureTable) {
+        assert_eq!(self.dim, other.dim, "feature tables of different dimension");
+        self.features.extend(other.features);
+        self.collection.extend(other.collection);
+        self.category.extend(other.category);
+        self.instance.extend(other.instance);
+        self.sequence.extend(other.sequence);
+        self.frame.extend(other.frame);
+    }
+
+    /// Checks that every column has `len()` entries and `features` has `len() × dim`.
+    pub fn check(&self) -> Result<(), String> {
+        let n = self.len();
+        for (name, len) in [
+            ("category", self.category.len()),
+            ("instance", self.instance.len()),
+            ("sequence", self.sequence.len()),
+            ("frame", self.frame.len()),
+        ] {
+            if len != n {
+                return Err(format!(
+                    "column `{name}` has {len} rows, `collection` has {n}"
+                ));
+            }
+        }
+        if self.features.len() != n * self.dim {
+            return Err(format!(
+                "`features` holds {} values, expected {n} rows × {} = {}",
+                self.features.len(),
+                self.dim,
+                n * self.dim
+            ));
+        }
+        Ok(())
+    }
+
+    /// Writes the table as an uncompressed `.npz` (temp file + rename).
+    pub fn write_npz(&self, path: &Path) -> Result<(), NpzError> {
+        self.check().map_err(|reason| NpzError::Format {
+            path: path.to_path_buf(),
+            reason,
+        })?;
+        let n = [self.len()];
+        let nd = [self.len(), self.dim];
+        write_npz(
+            path,
+            &[
+                ("features", NpyRef::F32(&self.features, &nd)),
+                ("collection", NpyRef::U32(&self.collection, &n)),
+                ("category", NpyRef::U32(&self.category, &n)),
+                ("instance", NpyRef::U32(&self.instance, &n)),
+                ("sequence", NpyRef::U64(&self.sequence, &n)),
+                ("frame", NpyRef::U32(&self.frame, &n)),
+            ],
+        )
+    }
+
+    /// Reads a table written by [`FeatureTable::write_npz`] (or by numpy with the same array
+    /// names; integer label arrays of any integer dtype are accepted).
+    pub fn read_npz(path: &Path) -> Result<FeatureTable, NpzError> {
+        let format = |reason: String| NpzError::Format {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let arrays = read_npz(path)?;
+        let get = |name: &str| {
+            arrays
+                .iter()
+                .find(|a| a.name == name)
+                .ok_or_else(|| format(format!("no array `{name}`")))
+        };
+        let features = get("features")?;
+        if features.shape.len() != 2 {
+            return Err(format(format!(
+                "`features` has shape {:?}, expected (n, dim)",
+                features.shape
+            )));
+        }
+        let (n, dim) = (features.shape[0], features.shape[1]);
+        let labels = |name: &str| -> Result<Vec<u64>, NpzError> {
+            let a = get(name)?;
+            if a.shape != [n] {
+                return Err(format(format!(
+                    "`{name}` has shape {:?}, expected ({n},)",
+                    a.shape
+                )));
+            }
+            a.data
+                .to_u64()
+                .ok_or_else(|| format(format!("`{name}` must hold non-negative integers")))
+        };
+        let small = |name: &str| -> Result<Vec<u32>, NpzError> {
+            labels(name)?
+                .into_iter()
+                .map(|v| {
+                    u32::try_from(v).map_err(|_| format(format!("`{name}` value {v} exceeds u32")))
+                })
+                .collect()
+        };
+        Ok(FeatureTable {
+            dim,
+            features: features.data.to_f32(),
+            collection: small("collection")?,
+            category: small("category")?,
+            instance: small("instance")?,
+            sequence: labels("sequence")?,
+            frame: small("frame")?,
+        })
+    }
+}
+
+/// GOOD descriptors (`bins` per side, `3 × bins²` values) of every view of every collection, in
+/// collection, file and frame order. Collections are processed in parallel; the result does not
+/// depend on the number of threads.
+pub fn good_features(
+    ds: &Dataset,
+    bins: usize,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<FeatureTable, DatasetError> {
+    if bins == 0 {
+        return Err(DatasetError::InvalidSpec {
+            field: "bins",
+            reason: "must be at least 1".into(),
+        });
+    }
+    let manifest = ds.manifest();
+    let n_coll = manifest.collections.len();
+    let dim = 3 * bins * bins;
+    let total = manifest.views;
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, n_coll.max(1));
+    let next = AtomicUsize::new(0);
+    let cancel = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel::<u64>();
+    let mut parts: Vec<Option<Result<FeatureTable, DatasetError>>> =
+        (0..n_coll).map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                let tx = tx.clone();
+                let (next, cancel) = (&next, &cancel);
+                scope.spawn(move || {
+                    let mut out = Vec::new();
+                    loop {
+                        let c = next.fetch_add(1, Ordering::SeqCst);
+                        if c >= n_coll || cancel.load(Ordering::SeqCst) {
+                            break;
+                        }
+                        let r = collection_features(ds, c as u32, bins, dim, &tx, cancel);
+                        if r.is_err() {
+                            cancel.store(true, Ordering::SeqCst);
+                        }
+                        out.push((c, r));
+                    }
+                    out
+                })
+            })
+            .collect();
+        drop(tx);
+        let mut done = 0;
+        for n in rx {
+            done += n;
+            progress(Progress {
+                stage: "features",
+                done,
+                total,
+            });
+        }
+        for h in handles {
+            for (c, r) in h.join().expect("feature worker panicked") {
+                parts[c] = Some(r);
+            }
+        }
+    });
+    let mut table = FeatureTable::new(dim);
+    let mut first_err = None;
+    for part in parts.into_iter().flatten() {
+        match part {
+            Ok(t) => table.extend(t),
+            Err(DatasetError::Cancelled) => {}
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    if let Some(e) = first_err {
+        return Err(e);
+    }
+    if table.len() as u64 != total {
+        return Err(DatasetError::Cancelled);
+    }
+    Ok(table)
+}
+
+fn collection_features(
+    ds: &Dataset,
+    c: u32,
+    bins: usize,
+    dim: usize,
+    tx: &mpsc::Sender<u64>,
+    cancel: &AtomicBool,
+) -> Result<FeatureTable, DatasetError> {
+    let manifest = ds.manifest();
+    let mut table = FeatureTable::new(dim);
+    for seq in ds.sequences(c)? {
+        if cancel.load(Ordering::SeqCst) {
+            return Err(DatasetError::Cancelled);
+        }
+        let seq = seq?;
+        let sequence = manifest.sequence_id(seq.collection, seq.instance);
+        for (f, cloud) in seq.frames.iter().enumerate() {
+            let start = table.features.len();
+            table.features.resize(start + dim, 0.0);
+            good_descriptor_into(&cloud.points, bins, &mut table.features[start..]).map_err(
+                |source| DatasetError::Good {
+                    collection: c,
+                    instance: seq.instance,
+                    frame: f as u32,
+                    source,
+                },
+            )?;
+            table.collection.push(c);
+            table.category.push(seq.category);
+            table.instance.push(seq.instance);
+            table.sequence.push(sequence);
+            table.frame.push(f as u32);
+        }
+        let _ = tx.send(seq.frames.len() as u64);
+    }
+    Ok(table)
+}

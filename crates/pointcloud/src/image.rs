@@ -1,0 +1,1 @@
+//! PNG/TIFF image I/O and drawing.

@@ -1,0 +1,1 @@
+//! Projection of clouds to 224×224 images and best-view selection.
