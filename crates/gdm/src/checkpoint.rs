@@ -226,6 +226,7 @@ fn read_network(
     let stride = net.dim * net.depth;
     let n = r.count(n, stride * 4 + 4)?;
     net.weights = r.f32s(n * stride)?;
+    net.rebuild_prefix();
     net.habituation = r.f32s(n)?;
     net.edges = Vec::with_capacity(n);
     for _ in 0..n {

@@ -112,16 +112,9 @@ fn cosine_from(dot: f32, na: f32, nb: f32) -> f32 {
 
 #[inline(always)]
 fn reduce(acc: [f32; LANES]) -> f32 {
-    // Fixed pairwise order: deterministic.
-    let mut v = acc;
-    let mut w = LANES / 2;
-    while w > 0 {
-        for i in 0..w {
-            v[i] += v[i + w];
-        }
-        w /= 2;
-    }
-    v[0]
+    // A plain left-to-right sum: deterministic, and (unlike a pairwise tree) it lets LLVM keep
+    // the lane accumulators in full-width SSE registers.
+    acc.iter().sum()
 }
 
 #[inline(always)]
@@ -223,6 +216,9 @@ pub(crate) struct Matches {
 pub(crate) struct NodeBuffer<'a> {
     /// n × depth × dim floats.
     pub weights: &'a [f32],
+    /// n × [`prefix_len`]`(dim)` floats: the first input-weight floats of every node, contiguous
+    /// (a copy of `weights`), so that the first early-abandon check streams through memory.
+    pub prefix: &'a [f32],
     /// Input dimension D.
     pub dim: usize,
     /// Blocks per node (K + 1).
@@ -299,6 +295,11 @@ impl Accumulator for Maha<'_> {
 /// Elements between two early-abandon checks inside a block.
 const CHECK: usize = 64;
 
+/// Length of the per-node prefix copy kept for the search: the first check's span.
+pub(crate) const fn prefix_len(dim: usize) -> usize {
+    if dim < CHECK { dim } else { CHECK }
+}
+
 /// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index.
 #[inline(always)]
 fn before(d: f32, i: usize, e: f32, j: usize) -> bool {
@@ -354,11 +355,13 @@ impl Ranking {
     }
 }
 
-/// The distance of one node, or `None` as soon as a lower bound exceeds `bound`.
+/// The distance of one node, or `None` as soon as a lower bound exceeds `bound`. `prefix` holds
+/// a copy of the node's first `prefix.len()` input-weight floats (the first check's span).
 #[inline(always)]
 fn bounded_distance<A: Accumulator>(
     acc: &A,
     node: &[f32],
+    prefix: &[f32],
     query: &[f32],
     dim: usize,
     alphas: &[f32],
@@ -372,7 +375,13 @@ fn bounded_distance<A: Accumulator>(
         let mut off = 0;
         while off < dim {
             let end = (off + CHECK).min(dim);
-            s += acc.accumulate(&q[off..end], &w[off..end], off);
+            // Same floats either way; the prefix copy is contiguous across nodes.
+            let w_chunk = if k == 0 && off == 0 {
+                prefix
+            } else {
+                &w[off..end]
+            };
+            s += acc.accumulate(&q[off..end], w_chunk, off);
             off = end;
             if total + alpha * acc.finish(s) > bound {
                 return None;
@@ -398,13 +407,17 @@ fn search_monotone<A: Accumulator>(
     if n == 0 {
         return None;
     }
+    let p = prefix_len(dim);
+    debug_assert_eq!(buf.prefix.len(), n * p);
     let mut rank = Ranking::new(want_second);
     // Likely winners first: a tight bound early makes the scan abandon most nodes quickly.
     // The ranking is by (distance, index), so the visiting order cannot change the result.
     for &j in seeds {
         if j < n && !rank.seen(j) {
             let node = &buf.weights[j * stride..(j + 1) * stride];
-            if let Some(d) = bounded_distance(acc, node, query, dim, alphas, rank.bound()) {
+            let prefix = &buf.prefix[j * p..(j + 1) * p];
+            let bound = rank.bound();
+            if let Some(d) = bounded_distance(acc, node, prefix, query, dim, alphas, bound) {
                 rank.offer(j, d);
             }
         }
@@ -414,7 +427,8 @@ fn search_monotone<A: Accumulator>(
             continue;
         }
         let node = &buf.weights[j * stride..(j + 1) * stride];
-        if let Some(d) = bounded_distance(acc, node, query, dim, alphas, rank.bound()) {
+        let prefix = &buf.prefix[j * p..(j + 1) * p];
+        if let Some(d) = bounded_distance(acc, node, prefix, query, dim, alphas, rank.bound()) {
             rank.offer(j, d);
         }
     }
@@ -635,7 +649,13 @@ mod tests {
         };
         let weights: Vec<f32> = (0..n * depth * dim).map(|_| next()).collect();
         let q: Vec<f32> = (0..depth * dim).map(|_| next()).collect();
+        let p = prefix_len(dim);
+        let prefix: Vec<f32> = weights
+            .chunks(depth * dim)
+            .flat_map(|node| node[..p].to_vec())
+            .collect();
         let buf = NodeBuffer {
+            prefix: &prefix,
             weights: &weights,
             dim,
             depth,

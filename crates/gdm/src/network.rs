@@ -186,6 +186,9 @@ pub struct GammaGwr {
     pub(crate) dim: usize,
     pub(crate) depth: usize,
     pub(crate) weights: Vec<f32>,
+    /// Search cache: each node's first `prefix_len(dim)` weight floats, contiguous. Derived
+    /// from `weights` (kept in sync by every change; not saved).
+    pub(crate) prefix: Vec<f32>,
     pub(crate) habituation: Vec<f32>,
     pub(crate) edges: Vec<Vec<Edge>>,
     pub(crate) synapses: Vec<Vec<(u32, u32)>>,
@@ -220,6 +223,7 @@ impl GammaGwr {
             dim,
             depth,
             weights: Vec::new(),
+            prefix: Vec::new(),
             habituation: Vec::new(),
             edges: Vec::new(),
             synapses: Vec::new(),
@@ -361,6 +365,7 @@ impl GammaGwr {
     fn buffer(&self) -> NodeBuffer<'_> {
         NodeBuffer {
             weights: &self.weights,
+            prefix: &self.prefix,
             dim: self.dim,
             depth: self.depth,
         }
@@ -514,6 +519,7 @@ impl GammaGwr {
             &self.train_ctx.global,
             rate_b * h_b,
         );
+        self.sync_prefix(b);
         self.connect(b, s);
         self.age_edges(b, s);
         for i in 0..self.edges[b].len() {
@@ -524,6 +530,7 @@ impl GammaGwr {
                 &self.train_ctx.global,
                 rate_n * h_n,
             );
+            self.sync_prefix(nb);
             self.habituate(nb, self.params.tau_n);
         }
     }
@@ -593,7 +600,26 @@ impl GammaGwr {
         r
     }
 
+    /// Copies node `j`'s first weights into the search prefix.
+    fn sync_prefix(&mut self, j: usize) {
+        let (p, s) = (metric::prefix_len(self.dim), self.stride());
+        self.prefix[j * p..(j + 1) * p].copy_from_slice(&self.weights[j * s..j * s + p]);
+    }
+
+    /// Recomputes the search prefix of every node from `weights`.
+    pub(crate) fn rebuild_prefix(&mut self) {
+        let (p, s) = (metric::prefix_len(self.dim), self.stride());
+        self.prefix.clear();
+        for node in self.weights.chunks_exact(s) {
+            self.prefix.extend_from_slice(&node[..p]);
+        }
+    }
+
+    /// Completes a node whose block was just appended to `weights`.
     fn finish_push(&mut self, labels: &[Option<u32>]) {
+        let (p, r) = (metric::prefix_len(self.dim), self.habituation.len());
+        self.prefix.resize((r + 1) * p, 0.0);
+        self.sync_prefix(r);
         self.habituation.push(1.0);
         self.edges.push(Vec::new());
         self.synapses.push(Vec::new());
@@ -722,6 +748,7 @@ impl GammaGwr {
             }
         }
         self.weights.truncate(remaining * stride);
+        self.rebuild_prefix();
         let kept = |j: usize| keep[j];
         let mut idx = 0;
         self.habituation.retain(|_| {
@@ -790,6 +817,14 @@ impl GammaGwr {
         }
         if self.labels.iter().any(|l| l.len() != n) {
             return Err("label histograms do not match the node count".into());
+        }
+        let p = metric::prefix_len(self.dim);
+        let prefix_ok = self.prefix.len() == n * p
+            && (0..n).all(|j| {
+                self.prefix[j * p..(j + 1) * p] == self.weights[j * stride..j * stride + p]
+            });
+        if !prefix_ok {
+            return Err("search prefix out of sync with the weights".into());
         }
         if let Some(j) = self.weights.iter().position(|w| !w.is_finite()) {
             return Err(format!("non-finite weight at float {j}"));
@@ -1166,6 +1201,7 @@ mod tests {
         }
         assert!(learn.len() > 5);
         net.weights = learn.weights.clone();
+        net.rebuild_prefix();
         net.habituation = learn.habituation.clone();
         net.edges = learn.edges.clone();
         net.synapses = learn.synapses.clone();
