@@ -126,6 +126,8 @@ def _flatten(cfg: Mapping[str, Any]) -> dict[str, Any]:
 
 def _features(X: ArrayLike) -> np.ndarray:
     """X as a C-contiguous float32 (n, d) array, or InputError."""
+    if type(X) is np.ndarray and X.dtype == np.float32 and X.ndim == 2 and X.flags.c_contiguous:
+        return X  # the common case, no copy and no checks to make here
     try:
         arr = np.asarray(X)
     except Exception as e:  # ragged lists, objects numpy cannot take
@@ -149,6 +151,13 @@ def _ids(value: Labels, n: int, name: str) -> np.ndarray | None:
     """
     if value is None:
         return None
+    if (
+        type(value) is np.ndarray
+        and value.dtype == np.int64
+        and value.ndim == 1
+        and value.flags.c_contiguous
+    ):
+        return value
     if isinstance(value, (bool, np.bool_)):
         raise InputError(f"{name} must be integers, got a bool")
     if np.ndim(value) == 0:
@@ -403,6 +412,15 @@ class GDM:
     def load(cls, path: PathLike) -> GDM:
         """Reads a checkpoint file written by :meth:`save` or by ``lgdm train``."""
         return cls._from_model(_lgdm.Model.load(os.fspath(path)))
+
+    def __copy__(self) -> GDM:
+        return self.__deepcopy__({})
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> GDM:
+        twin = type(self)(self.preset, **self._overrides)
+        if self._model is not None:
+            twin._model = self._model.copy()
+        return twin
 
     def __getstate__(self) -> dict[str, Any]:
         return {
