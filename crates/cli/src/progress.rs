@@ -114,7 +114,7 @@ impl Task {
 
     /// Like `update`, but in JSON-lines mode emits only when the percentage changes.
     pub fn update_coarse(&mut self, stage: &str, done: u64, total: u64) {
-        let pct = if total == 0 { 0 } else { done * 100 / total };
+        let pct = (done * 100).checked_div(total).unwrap_or(0);
         if self.mode == ProgressMode::Jsonl {
             if self.last_emitted == Some((pct, total)) && done != total {
                 return;

@@ -311,12 +311,12 @@ pub fn voxel_downsample(cloud: &PointCloud, voxel_m: f32) -> PointCloud {
         let mut csum = [0u32; 3];
         while end < order.len() && order[end].0 == k {
             let i = order[end].1;
-            for d in 0..3 {
-                sum[d] += f64::from(cloud.points[i][d]);
+            for (s, &v) in sum.iter_mut().zip(&cloud.points[i]) {
+                *s += f64::from(v);
             }
             if let Some(c) = &cloud.colors {
-                for d in 0..3 {
-                    csum[d] += u32::from(c[i][d]);
+                for (s, &v) in csum.iter_mut().zip(&c[i]) {
+                    *s += u32::from(v);
                 }
             }
             end += 1;

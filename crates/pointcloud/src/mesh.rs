@@ -263,7 +263,7 @@ impl Mesh {
         };
         let mut u = normalize(cross(t0, helper));
         let mut rings: Vec<Vec<[f32; 3]>> = Vec::with_capacity(n);
-        for i in 0..n {
+        for (i, &centre) in path.iter().enumerate() {
             let t = tangent(i);
             // Remove the tangential component to transport the frame.
             u = normalize(sub(u, scale(t, dot(u, t))));
@@ -272,7 +272,7 @@ impl Mesh {
                 .map(|j| {
                     let a = std::f32::consts::TAU * j as f32 / sides as f32;
                     add(
-                        path[i],
+                        centre,
                         add(scale(u, radius * a.cos()), scale(w, radius * a.sin())),
                     )
                 })

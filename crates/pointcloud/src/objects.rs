@@ -81,8 +81,12 @@ pub fn procedural_object(
         .iter()
         .position(|&c| c == category)
         .ok_or_else(|| UnknownCategory(category.to_string()))?;
-    let mut rng =
-        ChaCha8Rng::seed_from_u64(derive_seed(seed, 0x0B1E_C7, index as u64, instance as u64));
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(
+        seed,
+        0x000B_1EC7,
+        index as u64,
+        instance as u64,
+    ));
     let r = &mut rng;
     let mut mesh = match category {
         "mug" => mug(r, instance),
@@ -189,7 +193,7 @@ fn mug(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         [0.0, 0.012],
     ];
     let mut mesh = Mesh::lathe(&profile, SEGMENTS, color);
-    let squareness = if instance % 2 == 0 {
+    let squareness = if instance.is_multiple_of(2) {
         2.0
     } else {
         u(r, 3.0, 5.0)
@@ -246,7 +250,7 @@ fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         [-radius - reach, 0.0, zc + 0.85 * rz * rise],
     ];
     mesh.append(&Mesh::tube(&spout, spout_r, 10, color));
-    let squareness = if instance % 2 == 0 { 2.5 } else { 4.0 };
+    let squareness = if instance.is_multiple_of(2) { 2.5 } else { 4.0 };
     let handle = handle_path(
         radius * 0.85,
         zc - 0.45 * rz,

@@ -26,11 +26,12 @@ const TAG_SEQUENCE: u64 = 0x5E0;
 /// Label of the object in rendered frames.
 pub(crate) const OBJECT_LABEL: u8 = 2;
 
+/// Objects, category names and manifest entries, as [`load_objects`] returns them.
+pub type LoadedObjects = (Vec<ObjectModel>, Vec<String>, Vec<InstanceInfo>);
+
 /// The objects a spec describes (procedural or imported), the category names in label order,
 /// and the per-instance manifest entries.
-pub fn load_objects(
-    spec: &DatasetSpec,
-) -> Result<(Vec<ObjectModel>, Vec<String>, Vec<InstanceInfo>), DatasetError> {
+pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
     let (objects, sources): (Vec<ObjectModel>, Vec<String>) = match &spec.meshes {
         None => {
             let cats: Vec<&str> = spec.categories.iter().map(String::as_str).collect();
