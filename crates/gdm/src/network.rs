@@ -178,7 +178,7 @@ impl ContextState {
 }
 
 /// A Gamma-GWR network (see the module docs).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct GammaGwr {
     pub(crate) params: MemoryParams,
     pub(crate) metric: Metric,
@@ -199,6 +199,20 @@ pub struct GammaGwr {
 }
 
 const NO_CONTEXT_ALPHAS: [f32; 1] = [1.0];
+
+/// A summary: the buffers are far too large to print.
+impl std::fmt::Debug for GammaGwr {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GammaGwr")
+            .field("nodes", &self.len())
+            .field("edges", &self.edge_count())
+            .field("dim", &self.dim)
+            .field("context_depth", &self.context_depth())
+            .field("levels", &self.levels())
+            .field("metric", &self.metric)
+            .finish_non_exhaustive()
+    }
+}
 
 impl GammaGwr {
     /// An empty network for `dim`-dimensional inputs with `levels` label levels.
