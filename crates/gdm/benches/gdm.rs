@@ -125,7 +125,8 @@ fn grown_episodic(nodes: usize, data: &Data) -> GammaGwr {
             if i % VIEWS == 0 {
                 net.begin_sequence();
             }
-            net.train_step(x, &[Some(data.label[i]), None], Supervision::Unsupervised);
+            net.train_step(x, &[Some(data.label[i])], Supervision::Unsupervised)
+                .unwrap();
         }
         if net.len() >= nodes {
             break;
@@ -162,11 +163,10 @@ fn bench(c: &mut Criterion) {
                     net.begin_sequence();
                 }
                 let x = &stream.xs[i % stream.xs.len()];
-                let out = net.train_step(
-                    x,
-                    &[Some(stream.label[i % stream.xs.len()]), None],
-                    Supervision::Unsupervised,
-                );
+                let label = Some(stream.label[i % stream.xs.len()]);
+                let out = net
+                    .train_step(x, &[label], Supervision::Unsupervised)
+                    .unwrap();
                 i += 1;
                 black_box(out)
             })

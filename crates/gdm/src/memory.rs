@@ -70,7 +70,7 @@ impl EpisodicMemory {
         category: Option<u32>,
     ) -> StepOutcome {
         self.net
-            .train_step(x, &[instance, category], Supervision::Unsupervised)
+            .step(x, &[instance, category], Supervision::Unsupervised)
     }
 }
 
@@ -109,6 +109,6 @@ impl SemanticMemory {
     }
 
     pub(crate) fn train_step(&mut self, x: &[f32], category: Option<u32>) -> StepOutcome {
-        self.net.train_step(x, &[category], Supervision::Regulated)
+        self.net.step(x, &[category], Supervision::Regulated)
     }
 }

@@ -18,10 +18,11 @@
 //! let params = MemoryParams { context_depth: 1, ..MemoryParams::default() };
 //! let mut net = GammaGwr::new(params, Metric::Manhattan, 2, 1).unwrap();
 //! for (i, x) in [[0.0, 0.0], [1.0, 1.0], [0.1, 0.0]].iter().enumerate() {
-//!     net.train_step(x, &[Some(i as u32 % 2)], Supervision::Unsupervised);
+//!     net.train_step(x, &[Some(i as u32 % 2)], Supervision::Unsupervised).unwrap();
 //! }
 //! assert!(net.len() >= 2);
 //! net.check_consistency().unwrap();
+//! assert!(net.train_step(&[f32::NAN, 0.0], &[None], Supervision::Unsupervised).is_err());
 //! ```
 
 use crate::config::MemoryParams;
@@ -408,18 +409,40 @@ impl GammaGwr {
         self.train_ctx.reset();
     }
 
-    /// One training step on input `x` (length D, finite) with one optional label per level.
-    ///
-    /// Panics if `x.len() != dim()` or `labels.len() != levels()`; the dual model validates its
-    /// input before calling this.
+    /// One training step on input `x` (length D, finite values) with `labels[level]` the
+    /// optional label of each level (missing levels count as unlabelled; extra entries are
+    /// ignored). A wrong length or a non-finite value is an error (reported as sample 0), and the
+    /// network is then unchanged.
     pub fn train_step(
         &mut self,
         x: &[f32],
         labels: &[Option<u32>],
         supervision: Supervision,
+    ) -> Result<StepOutcome, GdmError> {
+        if x.len() != self.dim {
+            return Err(GdmError::DimensionMismatch {
+                sample: 0,
+                expected: self.dim,
+                found: x.len(),
+            });
+        }
+        if let Some(position) = x.iter().position(|v| !v.is_finite()) {
+            return Err(GdmError::NonFinite {
+                sample: 0,
+                position,
+            });
+        }
+        Ok(self.step(x, labels, supervision))
+    }
+
+    /// [`GammaGwr::train_step`] without input checks (`x` must have length D and be finite).
+    pub(crate) fn step(
+        &mut self,
+        x: &[f32],
+        labels: &[Option<u32>],
+        supervision: Supervision,
     ) -> StepOutcome {
-        assert_eq!(x.len(), self.dim, "input dimension");
-        assert_eq!(labels.len(), self.levels(), "label levels");
+        debug_assert_eq!(x.len(), self.dim);
         if let Some(stats) = &mut self.stats {
             stats.observe(x);
         }
@@ -470,7 +493,7 @@ impl GammaGwr {
 
         let p = &self.params;
         let activity = (-d_b).exp();
-        let truth = labels[0];
+        let truth = labels.first().copied().flatten();
         let (may_insert, mispredicted) = match supervision {
             Supervision::Unsupervised => (true, false),
             Supervision::Regulated => {
@@ -494,9 +517,9 @@ impl GammaGwr {
             self.update(b, s_node, rate_b, rate_n);
             if !mispredicted {
                 let (inc, dec) = (self.params.label_increment, self.params.label_decrement);
-                for (level, label) in labels.iter().enumerate() {
-                    if let Some(y) = *label {
-                        self.labels[level][b].reinforce(y, inc, dec);
+                for (level, hists) in self.labels.iter_mut().enumerate() {
+                    if let Some(y) = labels.get(level).copied().flatten() {
+                        hists[b].reinforce(y, inc, dec);
                     }
                 }
             }
@@ -638,8 +661,8 @@ impl GammaGwr {
         self.edges.push(Vec::new());
         self.synapses.push(Vec::new());
         let inc = self.params.label_increment;
-        for (level, label) in labels.iter().enumerate() {
-            self.labels[level].push(Histogram::start(*label, inc));
+        for (level, hists) in self.labels.iter_mut().enumerate() {
+            hists.push(Histogram::start(labels.get(level).copied().flatten(), inc));
         }
     }
 
@@ -937,7 +960,7 @@ mod tests {
         let mut net = manual(p, &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
         let mut last = 1.0;
         for _ in 0..200 {
-            net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+            net.step(&[0.0], &[None], Supervision::Unsupervised);
             let h = net.habituation(0);
             assert!(
                 h > 0.0 && h <= last,
@@ -952,7 +975,7 @@ mod tests {
         assert!((net.habituation(1) - limit).abs() < 1e-3);
         // One step from h = 1 with τ_b = 0.3: 1 + 0.3·1.05·0 − 0.3 = 0.7.
         let mut fresh = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
-        fresh.train_step(&[0.0], &[None], Supervision::Unsupervised);
+        fresh.step(&[0.0], &[None], Supervision::Unsupervised);
         assert!((fresh.habituation(0) - 0.7).abs() < 1e-6);
         assert!((fresh.habituation(1) - 0.9).abs() < 1e-6);
     }
@@ -960,9 +983,9 @@ mod tests {
     #[test]
     fn first_two_samples_become_the_first_two_nodes() {
         let mut net = GammaGwr::new(params(1), Metric::Manhattan, 2, 2).unwrap();
-        let a = net.train_step(&[1.0, 2.0], &[Some(4), None], Supervision::Unsupervised);
+        let a = net.step(&[1.0, 2.0], &[Some(4), None], Supervision::Unsupervised);
         assert_eq!((a.node, a.inserted, a.best), (0, true, None));
-        let b = net.train_step(&[3.0, 4.0], &[Some(5), Some(9)], Supervision::Unsupervised);
+        let b = net.step(&[3.0, 4.0], &[Some(5), Some(9)], Supervision::Unsupervised);
         assert_eq!((b.node, b.inserted, b.best), (1, true, None));
         assert_eq!(net.weight(0), &[1.0, 2.0]);
         assert_eq!(net.weight(1), &[3.0, 4.0]);
@@ -982,13 +1005,13 @@ mod tests {
     fn insertion_needs_low_activity_low_habituation_and_room() {
         // Far input (a = e^-10 < a_T) but b is not habituated (h = 1 ≥ h_T): update, no insertion.
         let mut net = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
-        let out = net.train_step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
+        let out = net.step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
         assert!(!out.inserted);
         assert_eq!(net.len(), 2);
 
         // Habituated b (h = 0.05 < h_T) and far input: insertion between b and x.
         let mut net = manual(params(0), &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
-        let out = net.train_step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
+        let out = net.step(&[-10.0], &[Some(3)], Supervision::Unsupervised);
         assert!(out.inserted);
         assert_eq!(out.best.unwrap().0, 0);
         assert_eq!(out.node, 2);
@@ -1005,7 +1028,7 @@ mod tests {
         // Habituated b but near input (a = e^-0.1 ≥ a_T = 0.5): update.
         let mut net = manual(params(0), &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
         assert!(
-            !net.train_step(&[0.1], &[None], Supervision::Unsupervised)
+            !net.step(&[0.1], &[None], Supervision::Unsupervised)
                 .inserted
         );
 
@@ -1014,7 +1037,7 @@ mod tests {
         let d = -(a_t.ln());
         for (x, inserts) in [(d * 0.999, false), (d * 1.001, true)] {
             let mut net = manual(params(0), &[(0.0, 0.05), (5.0, 1.0)], &[(0, 1, 0)]);
-            let out = net.train_step(&[-x], &[None], Supervision::Unsupervised);
+            let out = net.step(&[-x], &[None], Supervision::Unsupervised);
             assert_eq!(out.inserted, inserts, "x = {x}");
         }
 
@@ -1025,7 +1048,7 @@ mod tests {
         };
         let mut net = manual(capped, &[(0.0, 0.05), (1.0, 1.0)], &[(0, 1, 0)]);
         assert!(
-            !net.train_step(&[-10.0], &[None], Supervision::Unsupervised)
+            !net.step(&[-10.0], &[None], Supervision::Unsupervised)
                 .inserted
         );
         assert_eq!(net.len(), 2);
@@ -1040,7 +1063,7 @@ mod tests {
             &[(0.0, 1.0), (1.0, 1.0), (2.0, 1.0)],
             &[(0, 1, 0), (0, 2, 0)],
         );
-        net.train_step(&[-0.5], &[None], Supervision::Unsupervised);
+        net.step(&[-0.5], &[None], Supervision::Unsupervised);
         // b = 0: h 1 → 0.7, then w += ε_b·0.7·(−0.5 − 0).
         assert!((net.weight(0)[0] - eb * 0.7 * -0.5).abs() < 1e-6);
         // neighbours move with their own (pre-habituation) h = 1.
@@ -1066,7 +1089,7 @@ mod tests {
         );
         let mut ages = Vec::new();
         for _ in 0..5 {
-            let out = net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+            let out = net.step(&[0.0], &[None], Supervision::Unsupervised);
             assert_eq!(out.best.unwrap().0, 0);
             net.check_consistency().unwrap();
             ages.push((net.edge_age(0, 1), net.edge_age(0, 2), net.edge_age(0, 3)));
@@ -1105,7 +1128,7 @@ mod tests {
             &[(2, 3, 7)],
         );
         for _ in 0..10 {
-            net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+            net.step(&[0.0], &[None], Supervision::Unsupervised);
         }
         assert_eq!(net.edge_age(2, 3), Some(7));
     }
@@ -1211,7 +1234,7 @@ mod tests {
             .map(|t| [((t * 7) % 11) as f32 * 0.3, ((t * 5) % 13) as f32 * 0.2])
             .collect();
         for x in &stream {
-            learn.train_step(x, &[None], Supervision::Unsupervised);
+            learn.step(x, &[None], Supervision::Unsupervised);
         }
         assert!(learn.len() > 5);
         net.weights = learn.weights.clone();
@@ -1227,7 +1250,7 @@ mod tests {
             let predicted = net.predict_step(&mut ctx, x, false).unwrap();
             let no_ctx = net.predict_step(&mut net.new_context(), x, true).unwrap();
             contexts_mattered |= predicted.0 != no_ctx.0;
-            let trained = net.train_step(x, &[None], Supervision::Unsupervised);
+            let trained = net.step(x, &[None], Supervision::Unsupervised);
             assert!(!trained.inserted);
             let (b, d) = trained.best.unwrap();
             assert_eq!(b, predicted.0);
@@ -1247,22 +1270,22 @@ mod tests {
             &[(0, 1, 0), (1, 2, 0)],
         );
         for x in [0.0, 10.0, 10.0, 20.0] {
-            net.train_step(&[x], &[None], Supervision::Unsupervised);
+            net.step(&[x], &[None], Supervision::Unsupervised);
         }
         assert_eq!(net.synapse(0, 1), 1);
         assert_eq!(net.synapse(1, 1), 0, "no self-synapse");
         assert_eq!(net.synapse(1, 2), 1);
         net.begin_sequence();
-        net.train_step(&[0.0], &[None], Supervision::Unsupervised);
+        net.step(&[0.0], &[None], Supervision::Unsupervised);
         assert_eq!(
             net.synapse(2, 0),
             0,
             "no synapse across a sequence boundary"
         );
-        net.train_step(&[20.0], &[None], Supervision::Unsupervised);
-        net.train_step(&[10.0], &[None], Supervision::Unsupervised);
-        net.train_step(&[20.0], &[None], Supervision::Unsupervised);
-        net.train_step(&[10.0], &[None], Supervision::Unsupervised);
+        net.step(&[20.0], &[None], Supervision::Unsupervised);
+        net.step(&[10.0], &[None], Supervision::Unsupervised);
+        net.step(&[20.0], &[None], Supervision::Unsupervised);
+        net.step(&[10.0], &[None], Supervision::Unsupervised);
         assert_eq!(net.synapse(0, 2), 1);
         assert_eq!(net.synapse(2, 1), 2);
         assert_eq!(net.successor(1), Some(2));
@@ -1295,10 +1318,10 @@ mod tests {
     fn unlabelled_samples_update_weights_but_not_histograms() {
         let mut net = manual(params(0), &[(0.0, 1.0), (1.0, 1.0)], &[(0, 1, 0)]);
         net.labels[0][0] = Histogram::start(Some(2), 1.0);
-        net.train_step(&[0.2], &[None], Supervision::Unsupervised);
+        net.step(&[0.2], &[None], Supervision::Unsupervised);
         assert_eq!(net.histogram(0, 0).entries(), &[(2, 1.0)]);
         assert!(net.weight(0)[0] > 0.0);
-        net.train_step(&[0.2], &[Some(5)], Supervision::Unsupervised);
+        net.step(&[0.2], &[Some(5)], Supervision::Unsupervised);
         assert_eq!(net.histogram(0, 0).entries(), &[(2, 0.9), (5, 1.0)]);
     }
 
@@ -1313,24 +1336,24 @@ mod tests {
         };
         // Right prediction, far input, habituated: no insertion, normal update with labels.
         let mut net = labelled(0.05);
-        let out = net.train_step(&[-10.0], &[Some(1)], Supervision::Regulated);
+        let out = net.step(&[-10.0], &[Some(1)], Supervision::Regulated);
         assert!(!out.inserted);
         assert_eq!(net.histogram(0, 0).get(1), 2.0);
         // Wrong prediction, far input, habituated: insertion with the true label.
         let mut net = labelled(0.05);
-        let out = net.train_step(&[-10.0], &[Some(2)], Supervision::Regulated);
+        let out = net.step(&[-10.0], &[Some(2)], Supervision::Regulated);
         assert!(out.inserted);
         assert_eq!(net.label(0, out.node), Some(2));
         // Wrong prediction, not insertable (h = 1): update at ε·mod_rate, no label update.
         let mut net = labelled(1.0);
-        let out = net.train_step(&[-10.0], &[Some(2)], Supervision::Regulated);
+        let out = net.step(&[-10.0], &[Some(2)], Supervision::Regulated);
         assert!(!out.inserted);
         assert_eq!(net.histogram(0, 0).entries(), &[(1, 1.0)]);
         let moved = net.weight(0)[0];
         assert!((moved - eb * mr * 0.7 * -10.0).abs() < 1e-6, "{moved}");
         // No ground truth: normal update, no insertion, no label change.
         let mut net = labelled(0.05);
-        let out = net.train_step(&[-10.0], &[None], Supervision::Regulated);
+        let out = net.step(&[-10.0], &[None], Supervision::Regulated);
         assert!(!out.inserted);
         assert_eq!(net.histogram(0, 0).entries(), &[(1, 1.0)]);
     }

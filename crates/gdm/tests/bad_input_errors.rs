@@ -128,3 +128,38 @@ fn one_sample_is_enough_to_predict() {
     );
     assert_eq!(p[0].activation, 1.0);
 }
+
+#[test]
+fn a_bare_network_rejects_bad_input_too() {
+    use lgdm_gdm::{GammaGwr, MemoryParams, Metric, Supervision};
+    let mut net = GammaGwr::new(MemoryParams::default(), Metric::Manhattan, 2, 1).unwrap();
+    let e = net
+        .train_step(&[1.0], &[None], Supervision::Unsupervised)
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            GdmError::DimensionMismatch {
+                expected: 2,
+                found: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let e = net
+        .train_step(&[1.0, f32::INFINITY], &[Some(1)], Supervision::Regulated)
+        .unwrap_err();
+    assert!(matches!(e, GdmError::NonFinite { position: 1, .. }), "{e}");
+    assert!(net.is_empty(), "rejected steps must not change the network");
+    // Missing label levels count as unlabelled; extra ones are ignored.
+    net.train_step(&[0.0, 0.0], &[], Supervision::Unsupervised)
+        .unwrap();
+    net.train_step(&[1.0, 0.0], &[Some(3), Some(4)], Supervision::Unsupervised)
+        .unwrap();
+    assert_eq!((net.label(0, 0), net.label(0, 1)), (None, Some(3)));
+    assert!(matches!(
+        GammaGwr::new(MemoryParams::default(), Metric::Manhattan, 0, 1),
+        Err(GdmError::ZeroDimension)
+    ));
+}
