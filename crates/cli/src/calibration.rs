@@ -11,6 +11,10 @@ use lgdm_gdm::GdmConfig;
 use crate::data::Encoder;
 
 /// The preset with thresholds calibrated for an encoder.
+///
+/// GOOD: a validation grid (README, "Calibration") found the paper's incremental thresholds on
+/// the plateau of validation accuracy, so the presets are used unchanged. The autoencoder
+/// features are the paper's own, so its values apply as printed.
 pub fn calibrated(config: GdmConfig, encoder: Encoder) -> GdmConfig {
     match encoder {
         Encoder::Good => config,
