@@ -1,18 +1,344 @@
-//! Grasp-labelled RGB-D images in the Cornell layout.
+//! Grasp-labelled RGB-D images in the Cornell grasping dataset's layout, so existing Cornell
+//! loaders read them:
+//!
+//! ```text
+//! <root>/<nn>/pcdNNNNr.png      RGB, 8 bit
+//! <root>/<nn>/pcdNNNNd.tiff     depth, float32 metres (0 = no data)
+//! <root>/<nn>/pcdNNNNcpos.txt   positive rectangles: four "x y" corner lines each,
+//! <root>/<nn>/pcdNNNNcneg.txt   negative rectangles  first edge along the opening axis
+//! <root>/index.json             image number → object, camera, counts
+//! ```
+//!
+//! Image `k` (from 0) is number `NNNN = 100 + k` in folder `nn = NNNN / 100`, as in the
+//! original (`01/pcd0100r.png` …).
+//!
+//! ```no_run
+//! use lgdm_pointcloud::cornell::read_rectangles;
+//! let rects = read_rectangles("grasp/01/pcd0100cpos.txt".as_ref()).unwrap();
+//! println!("{} positive rectangles", rects.len());
+//! ```
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
 use crate::dataset::{DatasetError, DatasetSpec, GraspSetInfo, InstanceInfo};
+use crate::grasp::{GraspCandidate, GraspRectangle, GraspSpec, GraspVerdict, synthesize_grasps};
+use crate::image::{RgbImage, write_depth_tiff};
+use crate::math::{Pose, derive_seed};
+use crate::mesh::Mesh;
 use crate::objects::ObjectModel;
 use crate::progress::Progress;
+use crate::render::{Camera, Intrinsics, RenderItem, RgbdFrame, render};
 
-/// Exports `spec.grasp_images` grasp-labelled images (none yet).
+/// Label of the table in grasp scenes.
+pub const TABLE_LABEL: u8 = 1;
+/// Label of the object in grasp scenes.
+pub const OBJECT_LABEL: u8 = 2;
+
+const TAG_GRASP_SCENE: u64 = 0x6A5;
+
+/// One rendered grasp scene with its evaluated candidates.
+#[derive(Debug, Clone)]
+pub struct GraspScene {
+    /// The top-down camera.
+    pub camera: Camera,
+    /// RGB-D frame (table and object).
+    pub frame: RgbdFrame,
+    /// Where the object stands.
+    pub world_from_object: Pose,
+    /// Accepted and rejected candidates.
+    pub candidates: Vec<GraspCandidate>,
+}
+
+impl GraspScene {
+    /// Positive rectangles.
+    pub fn positives(&self) -> Vec<GraspRectangle> {
+        self.candidates
+            .iter()
+            .filter(|c| c.verdict == GraspVerdict::Accepted)
+            .map(|c| c.rectangle)
+            .collect()
+    }
+
+    /// Negative rectangles.
+    pub fn negatives(&self) -> Vec<GraspRectangle> {
+        self.candidates
+            .iter()
+            .filter(|c| c.verdict != GraspVerdict::Accepted)
+            .map(|c| c.rectangle)
+            .collect()
+    }
+}
+
+/// A wooden table top, 1.4 m square, at z = 0.
+pub fn table_mesh() -> Mesh {
+    let mut m = Mesh::new();
+    let (h, c) = (0.7, [150, 118, 84]);
+    m.push_triangle([-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], c);
+    m.push_triangle([-h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0], c);
+    m
+}
+
+/// Renders object `object` for grasp image `image` (seeded placement and camera) and
+/// synthesises its grasp rectangles.
+pub fn grasp_scene(spec: &GraspSpec, seed: u64, image: usize, object: &ObjectModel) -> GraspScene {
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_GRASP_SCENE, image as u64, 0));
+    let yaw = rng.random_range(0.0..std::f32::consts::TAU);
+    let (dx, dy) = (rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05));
+    let world_from_object = Pose::translation([dx, dy, 0.0]).compose(&Pose::rotation_z(yaw));
+    // Nearly top-down camera, slightly off-centre, image "up" along world +y.
+    let eye = [
+        rng.random_range(-0.04..0.04),
+        rng.random_range(-0.04..0.04),
+        spec.camera_height_m,
+    ];
+    let camera = Camera::new(
+        Intrinsics::kinect_vga(),
+        Pose::look_at(eye, [dx * 0.5, dy * 0.5, 0.0], [0.0, 1.0, 0.0]),
+    );
+    let table = table_mesh();
+    let frame = render(
+        &camera,
+        &[
+            RenderItem {
+                mesh: &table,
+                world_from_object: Pose::IDENTITY,
+                label: TABLE_LABEL,
+            },
+            RenderItem {
+                mesh: &object.mesh,
+                world_from_object,
+                label: OBJECT_LABEL,
+            },
+        ],
+    );
+    let mesh_world = object.mesh.transformed(&world_from_object);
+    let candidates = synthesize_grasps(&mesh_world, &frame, &camera, OBJECT_LABEL, spec, &mut rng);
+    GraspScene {
+        camera,
+        frame,
+        world_from_object,
+        candidates,
+    }
+}
+
+/// Cornell number of image `k`: `100 + k`.
+pub fn cornell_number(k: usize) -> usize {
+    100 + k
+}
+
+/// Path prefix `<root>/<nn>/pcdNNNN` of Cornell number `number`.
+pub fn cornell_prefix(root: &Path, number: usize) -> PathBuf {
+    root.join(format!("{:02}", number / 100))
+        .join(format!("pcd{number:04}"))
+}
+
+/// Writes rectangles as Cornell text: four `x y` lines per rectangle (shortest round-trip
+/// float formatting, so reading gives the same values back).
+pub fn write_rectangles(path: &Path, rectangles: &[GraspRectangle]) -> Result<(), DatasetError> {
+    let mut text = String::new();
+    for r in rectangles {
+        for [x, y] in r.corners_px {
+            let _ = writeln!(text, "{x} {y}");
+        }
+    }
+    std::fs::write(path, text).map_err(|e| DatasetError::io(path, e))
+}
+
+/// Reads Cornell rectangle text (`cpos.txt` / `cneg.txt`). Blank lines are ignored; a line
+/// that is not two numbers, a NaN, or a count of corners not divisible by four is an error.
+pub fn read_rectangles(path: &Path) -> Result<Vec<GraspRectangle>, DatasetError> {
+    let text = std::fs::read_to_string(path).map_err(|e| DatasetError::io(path, e))?;
+    let bad = |reason: String| DatasetError::Corrupt {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut corners = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let mut it = line.split_whitespace().map(str::parse::<f32>);
+        match (it.next(), it.next(), it.next()) {
+            (Some(Ok(x)), Some(Ok(y)), None) if x.is_finite() && y.is_finite() => {
+                corners.push([x, y])
+            }
+            _ => {
+                return Err(bad(format!(
+                    "line {}: expected two numbers `x y`, got `{line}`",
+                    n + 1
+                )));
+            }
+        }
+    }
+    if corners.len() % 4 != 0 {
+        return Err(bad(format!(
+            "{} corner lines is not a multiple of 4",
+            corners.len()
+        )));
+    }
+    Ok(corners
+        .chunks_exact(4)
+        .map(|c| GraspRectangle {
+            corners_px: [c[0], c[1], c[2], c[3]],
+        })
+        .collect())
+}
+
+/// One entry of `index.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GraspImageInfo {
+    /// Cornell number (`100 + k`).
+    pub number: usize,
+    /// Path prefix relative to the grasp root (`01/pcd0100`).
+    pub prefix: String,
+    /// Instance id (index in the manifest's instances).
+    pub instance: u32,
+    /// Category id.
+    pub category: u32,
+    /// Instance name.
+    pub object: String,
+    /// The camera (depth is its optical z).
+    pub camera: Camera,
+    /// Number of positive rectangles.
+    pub positives: usize,
+    /// Number of negative rectangles.
+    pub negatives: usize,
+}
+
+/// Exports `spec.grasp_images` images into `<out_dir>/grasp` (cycling through the objects),
+/// or nothing when it is 0.
 pub fn export_grasp_set(
-    _spec: &DatasetSpec,
-    _objects: &[ObjectModel],
-    _instances: &[InstanceInfo],
-    _out_dir: &Path,
-    _progress: &mut dyn FnMut(Progress),
+    spec: &DatasetSpec,
+    objects: &[ObjectModel],
+    instances: &[InstanceInfo],
+    out_dir: &Path,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<Option<GraspSetInfo>, DatasetError> {
-    Ok(None)
+    if spec.grasp_images == 0 || objects.is_empty() {
+        return Ok(None);
+    }
+    let root = out_dir.join("grasp");
+    let total = spec.grasp_images;
+    // Two workers, each taking every other image; results are written in image order.
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, 2);
+    let mut entries: Vec<Option<Result<GraspImageInfo, DatasetError>>> =
+        (0..total).map(|_| None).collect();
+    let (tx, rx) = std::sync::mpsc::channel::<(usize, Result<GraspImageInfo, DatasetError>)>();
+    std::thread::scope(|scope| {
+        for w in 0..workers {
+            let tx = tx.clone();
+            let root = &root;
+            scope.spawn(move || {
+                for k in (w..total).step_by(workers) {
+                    let o = k % objects.len();
+                    let r = write_grasp_image(
+                        spec,
+                        root,
+                        k,
+                        &objects[o],
+                        o as u32,
+                        instances[o].category,
+                    );
+                    let failed = r.is_err();
+                    if tx.send((k, r)).is_err() || failed {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        for (done, (k, r)) in rx.into_iter().enumerate() {
+            entries[k] = Some(r);
+            progress(Progress {
+                stage: "grasp images",
+                done: done as u64 + 1,
+                total: total as u64,
+            });
+        }
+    });
+    let mut index = Vec::with_capacity(total);
+    for e in entries {
+        match e {
+            Some(Ok(info)) => index.push(info),
+            Some(Err(e)) => return Err(e),
+            None => return Err(DatasetError::Cancelled),
+        }
+    }
+    let index_path = root.join("index.json");
+    crate::dataset::write_json_atomic(&index_path, &index)?;
+    Ok(Some(GraspSetInfo {
+        dir: "grasp".into(),
+        images: total,
+        index: "grasp/index.json".into(),
+    }))
+}
+
+fn write_grasp_image(
+    spec: &DatasetSpec,
+    root: &Path,
+    k: usize,
+    object: &ObjectModel,
+    instance: u32,
+    category: u32,
+) -> Result<GraspImageInfo, DatasetError> {
+    let scene = grasp_scene(&spec.grasp, spec.seed, k, object);
+    let number = cornell_number(k);
+    let prefix = cornell_prefix(root, number);
+    let dir = prefix.parent().expect("prefix has a folder");
+    std::fs::create_dir_all(dir).map_err(|e| DatasetError::io(dir, e))?;
+    let with = |suffix: &str| PathBuf::from(format!("{}{suffix}", prefix.display()));
+    let f = &scene.frame;
+    let (w, h) = (f.width as usize, f.height as usize);
+    let image_err = |e: crate::image::ImageError| DatasetError::Image {
+        path: e.path,
+        reason: e.reason,
+    };
+    RgbImage::from_pixels(w, h, f.rgb.clone())
+        .write_png(&with("r.png"))
+        .map_err(image_err)?;
+    write_depth_tiff(&with("d.tiff"), w, h, &f.depth_m).map_err(image_err)?;
+    let (pos, neg) = (scene.positives(), scene.negatives());
+    write_rectangles(&with("cpos.txt"), &pos)?;
+    write_rectangles(&with("cneg.txt"), &neg)?;
+    Ok(GraspImageInfo {
+        number,
+        prefix: format!("{:02}/pcd{number:04}", number / 100),
+        instance,
+        category,
+        object: object.name.clone(),
+        camera: scene.camera,
+        positives: pos.len(),
+        negatives: neg.len(),
+    })
+}
+
+/// Draws rectangles on an image: positives green with the jaw edges highlighted, negatives
+/// thin red.
+pub fn draw_rectangles(
+    img: &mut RgbImage,
+    positives: &[GraspRectangle],
+    negatives: &[GraspRectangle],
+) {
+    for r in negatives {
+        let c = r.corners_px;
+        for i in 0..4 {
+            img.draw_line(c[i], c[(i + 1) % 4], [220, 40, 40], 1);
+        }
+    }
+    for r in positives {
+        let c = r.corners_px;
+        // Opening-axis edges (0→1, 2→3) thin green; jaw edges (1→2, 3→0) thick blue.
+        img.draw_line(c[0], c[1], [40, 220, 60], 1);
+        img.draw_line(c[2], c[3], [40, 220, 60], 1);
+        img.draw_line(c[1], c[2], [40, 120, 255], 2);
+        img.draw_line(c[3], c[0], [40, 120, 255], 2);
+    }
 }

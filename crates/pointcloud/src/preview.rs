@@ -1,17 +1,198 @@
-//! Preview images for people: a contact sheet of every object and a grasp-labelled image.
+//! Preview images for people: `contact_sheet.png` (every object, one view each, labelled) and
+//! `grasp_preview.png` (the first grasp-labelled scene, RGB and depth, rectangles drawn).
 
 use std::path::Path;
 
+use crate::cornell::{draw_rectangles, grasp_scene};
 use crate::dataset::{DatasetError, DatasetSpec};
+use crate::image::{ImageError, RgbImage, depth_to_gray};
+use crate::math::Pose;
 use crate::objects::ObjectModel;
 use crate::progress::Progress;
+use crate::render::{Camera, Intrinsics, RenderItem, render};
+
+/// File name of the contact sheet.
+pub const CONTACT_SHEET: &str = "contact_sheet.png";
+/// File name of the grasp preview.
+pub const GRASP_PREVIEW: &str = "grasp_preview.png";
+
+const TILE_W: usize = 200;
+const TILE_H: usize = 160;
+const LABEL_H: usize = 16;
+const SHEET_BG: [u8; 3] = [32, 34, 38];
+const TILE_BG: [u8; 3] = [58, 62, 70];
+
+fn image_err(e: ImageError) -> DatasetError {
+    DatasetError::Image {
+        path: e.path,
+        reason: e.reason,
+    }
+}
+
+/// One view of an object filling a `width × height` tile: camera at 30° elevation, distance
+/// chosen so the bounding sphere fits.
+pub fn object_thumbnail(object: &ObjectModel, width: usize, height: usize) -> RgbImage {
+    let (lo, hi) = object.mesh.bounds().unwrap_or(([0.0; 3], [0.1; 3]));
+    let centre = [
+        (lo[0] + hi[0]) / 2.0,
+        (lo[1] + hi[1]) / 2.0,
+        (lo[2] + hi[2]) / 2.0,
+    ];
+    let radius =
+        0.5 * ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
+    let focal = height as f32 * 1.1;
+    let half_fov = (height as f32 / 2.0 / focal).atan();
+    let distance = (radius / half_fov.sin()) * 1.05;
+    let (s, c) = 30f32.to_radians().sin_cos();
+    // Looking from -y, slightly turned so handles and spouts show.
+    let dir = [0.35 * c, -c, s];
+    let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+    let eye = [
+        centre[0] + distance * dir[0] / n,
+        centre[1] + distance * dir[1] / n,
+        centre[2] + distance * dir[2] / n,
+    ];
+    let camera = Camera::new(
+        Intrinsics::centered(width as u32, height as u32, focal),
+        Pose::look_at(eye, centre, [0.0, 0.0, 1.0]),
+    );
+    let frame = render(
+        &camera,
+        &[RenderItem {
+            mesh: &object.mesh,
+            world_from_object: Pose::IDENTITY,
+            label: 1,
+        }],
+    );
+    let data = frame
+        .rgb
+        .iter()
+        .zip(&frame.label)
+        .map(|(&c, &l)| if l == 0 { TILE_BG } else { c })
+        .collect();
+    RgbImage::from_pixels(width, height, data)
+}
+
+/// The contact sheet: one labelled tile per object, one row per category when every category
+/// has the same number of instances (at most 10), else a square-ish grid.
+pub fn contact_sheet(objects: &[ObjectModel], title: &str) -> RgbImage {
+    let mut categories: Vec<&str> = Vec::new();
+    for o in objects {
+        if !categories.contains(&o.category.as_str()) {
+            categories.push(&o.category);
+        }
+    }
+    let per_cat: Vec<usize> = categories
+        .iter()
+        .map(|c| objects.iter().filter(|o| o.category == *c).count())
+        .collect();
+    let uniform =
+        per_cat.windows(2).all(|w| w[0] == w[1]) && per_cat.first().is_some_and(|&n| n <= 10);
+    let cols = if uniform {
+        per_cat[0]
+    } else {
+        (objects.len() as f32).sqrt().ceil() as usize
+    }
+    .max(1);
+    let rows = objects.len().div_ceil(cols);
+    let header = 28;
+    let (w, h) = (
+        cols * TILE_W + (cols + 1) * 4,
+        header + rows * (TILE_H + LABEL_H) + (rows + 1) * 4,
+    );
+    let mut sheet = RgbImage::new(w, h, SHEET_BG);
+    sheet.draw_text(8, 8, title, [230, 230, 230], 2);
+    for (i, o) in objects.iter().enumerate() {
+        let (r, c) = (i / cols, i % cols);
+        let x = 4 + c * (TILE_W + 4);
+        let y = header + 4 + r * (TILE_H + LABEL_H + 4);
+        sheet.blit(&object_thumbnail(o, TILE_W, TILE_H), x as i64, y as i64);
+        let label = &o.name;
+        let tw = RgbImage::text_width(label, 1);
+        sheet.draw_text(
+            (x + TILE_W.saturating_sub(tw) / 2) as i64,
+            (y + TILE_H + 4) as i64,
+            label,
+            [220, 220, 220],
+            1,
+        );
+    }
+    sheet
+}
 
 /// Writes the preview PNGs; returns their paths relative to `out_dir`.
 pub fn write_previews(
-    _spec: &DatasetSpec,
-    _objects: &[ObjectModel],
-    _out_dir: &Path,
-    _progress: &mut dyn FnMut(Progress),
+    spec: &DatasetSpec,
+    objects: &[ObjectModel],
+    out_dir: &Path,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<Vec<String>, DatasetError> {
-    Ok(Vec::new())
+    if objects.is_empty() {
+        return Ok(Vec::new());
+    }
+    let title = format!(
+        "lgdm dataset: {} objects, seed {}",
+        objects.len(),
+        spec.seed
+    );
+    contact_sheet(objects, &title)
+        .write_png(&out_dir.join(CONTACT_SHEET))
+        .map_err(image_err)?;
+    progress(Progress {
+        stage: "previews",
+        done: 1,
+        total: 2,
+    });
+    // The first grasp scene (the same one the Cornell export wrote as pcd0100).
+    let scene = grasp_scene(&spec.grasp, spec.seed, 0, &objects[0]);
+    grasp_preview(&scene, &objects[0].name)
+        .write_png(&out_dir.join(GRASP_PREVIEW))
+        .map_err(image_err)?;
+    progress(Progress {
+        stage: "previews",
+        done: 2,
+        total: 2,
+    });
+    Ok(vec![CONTACT_SHEET.to_string(), GRASP_PREVIEW.to_string()])
+}
+
+/// RGB (left) and depth (right) of a grasp scene with its rectangles drawn, cropped around the
+/// object and enlarged 2×.
+pub fn grasp_preview(scene: &crate::cornell::GraspScene, name: &str) -> RgbImage {
+    let f = &scene.frame;
+    let (w, h) = (f.width as usize, f.height as usize);
+    let (pos, neg) = (scene.positives(), scene.negatives());
+    let mut rgb = RgbImage::from_pixels(w, h, f.rgb.clone());
+    draw_rectangles(&mut rgb, &pos, &neg);
+    let mut depth = depth_to_gray(&f.depth_m, w, h);
+    draw_rectangles(&mut depth, &pos, &neg);
+    // Crop a square around the object's pixels.
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for (i, &l) in f.label.iter().enumerate() {
+        if l == crate::cornell::OBJECT_LABEL {
+            let (x, y) = (i % w, i / w);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+        }
+    }
+    let side = if x1 >= x0 {
+        ((x1 - x0).max(y1 - y0) + 80).clamp(160, h)
+    } else {
+        h
+    };
+    let cx = if x1 >= x0 { (x0 + x1) / 2 } else { w / 2 };
+    let cy = if y1 >= y0 { (y0 + y1) / 2 } else { h / 2 };
+    let (ox, oy) = (cx as i64 - side as i64 / 2, cy as i64 - side as i64 / 2);
+    let factor = if side <= 320 { 2 } else { 1 };
+    let rgb = rgb.crop(ox, oy, side, side).upscale(factor);
+    let depth = depth.crop(ox, oy, side, side).upscale(factor);
+    let mut out = RgbImage::new(2 * rgb.width + 4, rgb.height + 24, SHEET_BG);
+    out.blit(&rgb, 0, 24);
+    out.blit(&depth, (rgb.width + 4) as i64, 24);
+    let text = format!(
+        "{name}: {} positive (green, blue jaws), {} negative (red)",
+        pos.len(),
+        neg.len()
+    );
+    out.draw_text(6, 8, &text, [230, 230, 230], 1);
+    out
 }

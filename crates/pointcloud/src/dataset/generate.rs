@@ -209,12 +209,20 @@ pub fn generate(
         previews,
         spec: spec.clone(),
     };
-    write_atomic(&out_dir.join(MANIFEST_FILE), |w| {
-        use std::io::Write;
-        serde_json::to_writer_pretty(&mut *w, &manifest).map_err(std::io::Error::other)?;
-        w.write_all(b"\n")
-    })?;
+    write_json_atomic(&out_dir.join(MANIFEST_FILE), &manifest)?;
     Ok(manifest)
+}
+
+/// Writes pretty JSON through a temp file renamed into place.
+pub(crate) fn write_json_atomic<T: serde::Serialize>(
+    path: &Path,
+    value: &T,
+) -> Result<(), DatasetError> {
+    write_atomic(path, |w| {
+        use std::io::Write;
+        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
+        w.write_all(b"\n")
+    })
 }
 
 /// Relative path of collection `index`'s file.

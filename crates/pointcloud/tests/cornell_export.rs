@@ -1,0 +1,110 @@
+//! The Cornell export re-reads to the same rectangles; images have the Cornell layout (RGB PNG,
+//! float32 depth TIFF in metres); positives are antipodal grasps within the gripper's opening.
+
+use lgdm_pointcloud::cornell::{
+    GraspImageInfo, cornell_prefix, grasp_scene, read_rectangles, write_rectangles,
+};
+use lgdm_pointcloud::dataset::{
+    DatasetError, DatasetSpec, generate, load_objects, standard_collections,
+};
+use lgdm_pointcloud::grasp::{GraspRectangle, GraspVerdict};
+use lgdm_pointcloud::image::{RgbImage, read_depth_tiff};
+
+fn spec() -> DatasetSpec {
+    let mut spec = DatasetSpec::small(3);
+    spec.categories = vec!["mug".into(), "can".into(), "cereal_box".into()];
+    spec.instances_per_category = 1;
+    spec.collections = standard_collections().into_iter().take(1).collect();
+    spec.frames_per_sequence = 1;
+    spec.grasp_images = 3;
+    spec
+}
+
+#[test]
+fn export_rereads_to_the_same_rectangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = spec();
+    let manifest = generate(&spec, dir.path(), &mut |_| {}).unwrap();
+    let grasp = manifest.grasp.as_ref().unwrap();
+    assert_eq!(grasp.images, 3);
+    let index: Vec<GraspImageInfo> =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(&grasp.index)).unwrap())
+            .unwrap();
+    let (objects, _, _) = load_objects(&spec).unwrap();
+    let root = dir.path().join(&grasp.dir);
+    let mut total_positives = 0;
+    for (k, info) in index.iter().enumerate() {
+        assert_eq!(info.number, 100 + k);
+        let prefix = cornell_prefix(&root, info.number);
+        assert!(prefix.starts_with(root.join("01")));
+        let file = |s: &str| std::path::PathBuf::from(format!("{}{s}", prefix.display()));
+        // Same scene, recomputed: identical rectangles after the text round trip.
+        let scene = grasp_scene(&spec.grasp, spec.seed, k, &objects[info.instance as usize]);
+        assert_eq!(
+            read_rectangles(&file("cpos.txt")).unwrap(),
+            scene.positives()
+        );
+        assert_eq!(
+            read_rectangles(&file("cneg.txt")).unwrap(),
+            scene.negatives()
+        );
+        assert_eq!(scene.positives().len(), info.positives);
+        total_positives += info.positives;
+        // Images: 640×480 RGB and float32 depth equal to the rendered depth.
+        let rgb = RgbImage::read_png(&file("r.png")).unwrap();
+        assert_eq!((rgb.width, rgb.height), (640, 480));
+        let (w, h, depth) = read_depth_tiff(&file("d.tiff")).unwrap();
+        assert_eq!((w, h), (640, 480));
+        assert_eq!(depth, scene.frame.depth_m);
+        assert!(
+            depth.iter().all(|&d| d > 0.05 && d < 1.0),
+            "depth in metres, table everywhere"
+        );
+        // Every positive is an antipodal grasp the gripper can make.
+        for c in scene
+            .candidates
+            .iter()
+            .filter(|c| c.verdict == GraspVerdict::Accepted)
+        {
+            assert!(
+                c.opening_m > 0.0
+                    && c.opening_m + 2.0 * spec.grasp.clearance_m
+                        <= spec.grasp.max_opening_m + 1e-6
+            );
+            let r = c.rectangle;
+            assert!(r.width_px() > r.height_px() * 0.2);
+        }
+    }
+    assert!(
+        total_positives >= 10,
+        "only {total_positives} positive grasps over 3 images"
+    );
+}
+
+#[test]
+fn rectangle_text_round_trip_and_bad_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pcd0100cpos.txt");
+    let rects = vec![
+        GraspRectangle::from_center([100.25, 200.5], 0.3, 41.7, 19.1),
+        GraspRectangle::from_center([320.0, 240.0], -1.2, 12.0, 8.0),
+    ];
+    write_rectangles(&path, &rects).unwrap();
+    assert_eq!(read_rectangles(&path).unwrap(), rects);
+    for bad in [
+        "1 2\n3 4\n5 6\n",
+        "1 2\n3 x\n5 6\n7 8\n",
+        "1 2 3\n",
+        "NaN 1\n2 3\n4 5\n6 7\n",
+    ] {
+        std::fs::write(&path, bad).unwrap();
+        assert!(
+            matches!(read_rectangles(&path), Err(DatasetError::Corrupt { .. })),
+            "{bad:?}"
+        );
+    }
+    assert!(matches!(
+        read_rectangles(&dir.path().join("missing.txt")),
+        Err(DatasetError::Io { .. })
+    ));
+}
