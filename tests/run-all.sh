@@ -34,5 +34,6 @@ step "python: build and install the lgdm module (maturin)"
 )
 
 step "python: lint, tests"
-"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests python
-"$venv/bin/python" -m pytest -q crates/pybridge/tests
+"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python
+# -rs: say why a test was skipped (test_cli.py needs the release `lgdm` binary built above).
+"$venv/bin/python" -m pytest -q -rs crates/pybridge/tests

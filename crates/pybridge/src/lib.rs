@@ -5,6 +5,8 @@
 //! is its native part `lgdm._lgdm`:
 //!
 //! - [`model`]: `Model`, the dual-memory model on numpy arrays, GIL released while it works.
+//! - [`data`]: `Dataset` (sequences as numpy arrays), the GOOD descriptor and feature tables,
+//!   dataset generation.
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
 //!
 //! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
@@ -16,6 +18,7 @@
 //! ```
 #![allow(unsafe_code)] // pyo3's macros expand to FFI glue.
 
+pub mod data;
 pub mod errors;
 pub mod model;
 
@@ -35,5 +38,10 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_class::<model::Model>()?;
     m.add_function(wrap_pyfunction!(model::config_json, m)?)?;
+    m.add_class::<data::PyDataset>()?;
+    m.add_class::<data::SequenceIter>()?;
+    m.add_function(wrap_pyfunction!(data::good_descriptor, m)?)?;
+    m.add_function(wrap_pyfunction!(data::good_features, m)?)?;
+    m.add_function(wrap_pyfunction!(data::generate_dataset, m)?)?;
     Ok(())
 }

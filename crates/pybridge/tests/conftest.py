@@ -52,3 +52,13 @@ def held_out() -> dict[str, np.ndarray]:
     rng = np.random.default_rng(99)
     data["X"] = data["X"] + rng.normal(0.0, 0.03, data["X"].shape)
     return data
+
+
+@pytest.fixture(scope="session")
+def small_dataset(tmp_path_factory):
+    """The ``small`` dataset preset (10 categories × 3 instances, 15 collections), cut to 4
+    frames per sequence and 1 grasp image so it generates in a few seconds."""
+    import lgdm
+
+    out = tmp_path_factory.mktemp("dataset") / "small"
+    return lgdm.generate_dataset(out, "small", seed=0, frames=4, grasp_images=1)

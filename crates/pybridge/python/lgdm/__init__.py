@@ -3,6 +3,8 @@
 - :class:`GDM`: the dual-memory model (episodic + semantic Gamma-GWR memories with temporal
   context and intrinsic replay), scikit-learn style, numpy in and out.
 - :func:`config`: the full hyperparameters of a preset plus overrides.
+- Data: :class:`Dataset` (sequences of point clouds as numpy arrays, with labels),
+  :func:`good_descriptor`, :func:`good_features`, :func:`generate_dataset`.
 - Errors: :class:`LgdmError` and its subclasses.
 
 Example::
@@ -17,6 +19,7 @@ Example::
     instance, category, activation = model.predict(X)
 """
 
+from ._data import Dataset, generate_dataset, good_descriptor, good_features
 from ._errors import (
     CheckpointError,
     ConfigError,
@@ -33,10 +36,14 @@ __all__ = [
     "PRESETS",
     "CheckpointError",
     "ConfigError",
+    "Dataset",
     "DatasetError",
     "InputError",
     "LgdmError",
     "NotFittedError",
     "__version__",
     "config",
+    "generate_dataset",
+    "good_descriptor",
+    "good_features",
 ]

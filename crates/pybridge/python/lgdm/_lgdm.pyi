@@ -3,7 +3,9 @@
 Use the public names of ``lgdm``; this module is the engine underneath them.
 """
 
+from collections.abc import Iterator
 from os import PathLike
+from typing import Any, Literal, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -101,3 +103,67 @@ class Model:
         repeats: int = 1,
     ) -> list[float]:
         """Seconds of each of ``repeats`` native train calls, each on a fresh copy."""
+
+class Dataset:
+    """A dataset directory written by ``lgdm gen-dataset`` (manifest.json + one MCAP file per
+    collection). Opening checks the manifest and every collection file's size; raises
+    ``lgdm.DatasetError`` if the dataset is missing, incomplete or corrupt."""
+
+    def __init__(self, path: str | PathLike[str]) -> None: ...
+    @property
+    def path(self) -> str:
+        """The dataset directory."""
+    @property
+    def manifest(self) -> dict[str, Any]:
+        """The whole manifest as a dict."""
+    @property
+    def categories(self) -> list[str]:
+        """Category names; a category id is an index into this list."""
+    @property
+    def instances(self) -> list[dict[str, Any]]:
+        """Objects as dicts (``name``, ``category`` id, ``source``); an instance id indexes
+        this list."""
+    @property
+    def collections(self) -> list[dict[str, Any]]:
+        """Collections as dicts (``index``, ``name``, ``augmentation``, ``split``, ``file``,
+        ``sequences``, ``views``, ...)."""
+    def split(self, name: Literal["train", "test"]) -> list[int]:
+        """Indices of the collections of a split."""
+    def sequences(self, collection: int) -> SequenceIter:
+        """Iterates ``(frames, info)`` per object sequence of a collection: ``frames`` a list of
+        (N, 3) float32 arrays in metres, ``info`` the labels (see ``SequenceInfo``)."""
+
+class SequenceInfo(TypedDict):
+    """Labels of one sequence, as ``Dataset.sequences`` yields them."""
+
+    collection: int
+    category: int
+    instance: int
+    sequence: int
+    collection_name: str
+    category_name: str
+    instance_name: str
+    colors: list[npt.NDArray[np.uint8]] | None
+
+class SequenceIter(Iterator[tuple[list[npt.NDArray[np.float32]], SequenceInfo]]):
+    """Iterator over one collection's sequences."""
+
+    def __iter__(self) -> SequenceIter: ...
+    def __next__(self) -> tuple[list[npt.NDArray[np.float32]], SequenceInfo]: ...
+
+def good_descriptor(points: npt.NDArray[np.float32], bins: int = 15) -> npt.NDArray[np.float32]:
+    """The GOOD descriptor (3·bins² values) of an (N, 3) float32 C-contiguous cloud."""
+
+def good_features(dataset: Dataset, bins: int = 15) -> dict[str, npt.NDArray[Any]]:
+    """GOOD features of every view of a dataset with their labels."""
+
+def generate_dataset(
+    out: str,
+    preset: str = "small",
+    seed: int = 0,
+    *,
+    frames: int | None = None,
+    grasp_images: int | None = None,
+    meshes: str | None = None,
+) -> Dataset:
+    """Generates a dataset as ``lgdm gen-dataset`` does and opens it."""

@@ -1,0 +1,56 @@
+"""Every public name is documented, and the type stubs describe the native module as built."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+from pathlib import Path
+
+import lgdm
+from lgdm import _lgdm
+
+STUB = Path(lgdm.__file__).with_name("_lgdm.pyi")
+
+
+def test_public_names_have_docstrings():
+    for name in lgdm.__all__:
+        obj = getattr(lgdm, name)
+        if name in ("__version__", "PRESETS"):
+            continue
+        assert inspect.getdoc(obj), f"lgdm.{name} has no docstring"
+    for cls in (lgdm.GDM, lgdm.Dataset):
+        for attr, value in vars(cls).items():
+            if attr.startswith("_"):
+                continue
+            assert inspect.getdoc(value), f"{cls.__name__}.{attr} has no docstring"
+
+
+def stub_names() -> dict[str, set[str]]:
+    """Top-level names of the stub, and for each class its members."""
+    tree = ast.parse(STUB.read_text())
+    names: dict[str, set[str]] = {"": set()}
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            names[""].add(node.name)
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            names[""].add(node.target.id)
+        if isinstance(node, ast.ClassDef):
+            names[node.name] = {
+                n.name for n in node.body if isinstance(n, ast.FunctionDef) and n.name != "__init__"
+            }
+    return names
+
+
+def test_stubs_match_the_native_module():
+    stubs = stub_names()
+    runtime = {n for n in dir(_lgdm) if not n.startswith("__") or n == "__version__"}
+    typed_only = {"SequenceInfo"}  # a TypedDict describing a plain dict
+    assert stubs[""] - typed_only == runtime - {"__doc__"}, "stub and module differ"
+    for cls, members in stubs.items():
+        if not cls or cls in typed_only:
+            continue
+        actual = getattr(_lgdm, cls)
+        for member in members:
+            assert hasattr(actual, member), f"stub names {cls}.{member}, the module has none"
+        public = {m for m in dir(actual) if not m.startswith("__")}
+        assert public <= members, f"{cls} members missing from the stub: {public - members}"
