@@ -55,6 +55,10 @@ pub struct Args {
     /// Evaluate on the test set after every n-th step (default: often enough for ~25 points).
     #[arg(long)]
     pub eval_every: Option<usize>,
+    /// Per-step evaluations use at most this many samples per set (whole sequences, drawn with
+    /// the trial's seed); 0 = all. The final figures always use the whole test set.
+    #[arg(long, default_value_t = 3000)]
+    pub eval_samples: usize,
     /// Validation mode for choosing hyperparameters: the last two training collections (in
     /// manifest order) stand in for the test set and the test collections are not touched.
     #[arg(long)]
@@ -89,6 +93,8 @@ pub struct RunConfig {
     pub epochs: usize,
     /// Evaluation period in steps.
     pub eval_every: usize,
+    /// Per-step evaluation sample cap (0 = all).
+    pub eval_samples: usize,
     /// Validation mode: the evaluation set is two training collections, not the test set.
     pub validate: bool,
     /// Where the hyperparameters came from.
@@ -226,6 +232,7 @@ pub fn run(args: Args) -> Result<()> {
         epochs,
         replay,
         eval_every: 1,
+        eval_samples: args.eval_samples,
         seed: args.seed,
     };
     let steps = crate::experiment::plan_trial(&run_data, &base).steps.len();
@@ -239,6 +246,7 @@ pub fn run(args: Args) -> Result<()> {
         replay,
         epochs,
         eval_every,
+        eval_samples: args.eval_samples,
         validate: args.validate,
         hyperparameters_from: from,
         gdm: config,

@@ -29,6 +29,9 @@ pub struct TrialSettings {
     pub replay: bool,
     /// Evaluate on the test set after every n-th step (the last step always).
     pub eval_every: usize,
+    /// Per-step evaluations use at most this many samples (whole sequences drawn with the
+    /// trial's seed) from each set; 0 = all. The final figures always use every test sample.
+    pub eval_samples: usize,
     /// Trial seed: plan, held-out instances and the network's RNG.
     pub seed: u64,
 }
@@ -88,6 +91,28 @@ impl RunData<'_> {
             })
             .collect()
     }
+}
+
+/// Whole sequences holding at most `max_samples` samples, drawn at random (seeded) and kept in
+/// their original order; all of them when they fit or `max_samples` is 0.
+pub fn subsample(seqs: &[Vec<usize>], max_samples: usize, seed: u64) -> Vec<Vec<usize>> {
+    let total: usize = seqs.iter().map(Vec::len).sum();
+    if max_samples == 0 || total <= max_samples {
+        return seqs.to_vec();
+    }
+    let mut order: Vec<usize> = (0..seqs.len()).collect();
+    rand::seq::SliceRandom::shuffle(&mut order[..], &mut ChaCha8Rng::seed_from_u64(seed));
+    let mut chosen = Vec::new();
+    let mut n = 0;
+    for i in order {
+        if n >= max_samples {
+            break;
+        }
+        n += seqs[i].len();
+        chosen.push(i);
+    }
+    chosen.sort_unstable();
+    chosen.into_iter().map(|i| seqs[i].clone()).collect()
 }
 
 /// Builds the plan of one trial.
@@ -173,10 +198,20 @@ pub fn run_trial(
             } else {
                 &seen_train
             };
+            let train_seqs = subsample(train_seqs, s.eval_samples, s.seed ^ ((k as u64) << 20));
             let train = gdm
-                .evaluate(&data.samples(train_seqs), opts)
+                .evaluate(&data.samples(&train_seqs), opts)
                 .context("evaluating on training data")?;
-            let test_samples = data.samples(&scoped(&plan.test));
+            let test_seqs = if last {
+                scoped(&plan.test)
+            } else {
+                subsample(
+                    &scoped(&plan.test),
+                    s.eval_samples,
+                    s.seed ^ ((k as u64) << 21),
+                )
+            };
+            let test_samples = data.samples(&test_seqs);
             let test = if test_samples.is_empty() {
                 None
             } else {
@@ -272,4 +307,22 @@ pub fn run_trial(
         train_seconds,
     };
     Ok((gdm, record))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::subsample;
+
+    #[test]
+    fn subsample_keeps_whole_sequences_in_order_under_the_cap() {
+        let seqs: Vec<Vec<usize>> = (0..10).map(|s| (s * 4..s * 4 + 4).collect()).collect();
+        assert_eq!(subsample(&seqs, 0, 1), seqs);
+        assert_eq!(subsample(&seqs, 40, 1), seqs);
+        let sub = subsample(&seqs, 10, 1);
+        assert_eq!(sub.len(), 3, "sequences are added until the cap is reached");
+        assert!(sub.windows(2).all(|w| w[0][0] < w[1][0]));
+        assert!(sub.iter().all(|s| seqs.contains(s)));
+        assert_eq!(sub, subsample(&seqs, 10, 1));
+        assert_ne!(sub, subsample(&seqs, 10, 2));
+    }
 }
