@@ -12,8 +12,9 @@ The model: ``paper_incremental`` trained (2 epochs) on 200 objects × 10 views o
 synthetic 256-d features (about 600 episodic nodes, the size of a real run). Each
 ``partial_fit`` measurement starts from a fresh copy of that model (``copy.deepcopy`` in
 Python, ``clone`` in Rust; copying is not timed). Python and native measurements are
-interleaved; the minimum over the rounds is the cost least disturbed by other processes (the
-figure to compare on a shared machine), the median is printed beside it. Inputs are float32
+interleaved, each round taking the best of several calls for short batches (20 calls of one
+sample, 5 of 100); the minimum over the rounds is the cost least disturbed by other processes
+(the figure to compare on a shared machine), the median is printed beside it. Inputs are float32
 C-contiguous (no conversion copy); ``--float64`` passes float64 to show the conversion's cost.
 """
 
@@ -24,6 +25,7 @@ import copy
 import json
 import statistics
 import time
+import timeit
 
 import numpy as np
 
@@ -88,7 +90,7 @@ def main() -> None:
         ):
             py_fn(), native_fn()  # warm up
             rounds = args.rounds if batch < 10_000 else max(3, args.rounds // 3)
-            inner = 20 if batch == 1 else 1  # single samples: several calls per round
+            inner = {1: 20, 100: 5}.get(batch, 1)  # short calls: best of several per round
             py_t, native_t = [], []
             for _ in range(rounds):
                 py_t.append(min(py_fn() for _ in range(inner)))
@@ -106,6 +108,32 @@ def main() -> None:
                 f"{row['native_us_min']:>10.2f} ({row['native_us_median']:>7.2f})"
                 f"{row['overhead_min']:>9.1%} ({row['overhead_median']:>6.1%})"
             )
+    # The Python layer's fixed cost per call, measured where Rust has almost nothing to do (a
+    # two-node model, one sample): robust to background load, unlike differences of big timings.
+    tiny = lgdm.GDM(seed=0).partial_fit(np.zeros((2, args.dim), np.float32))
+    x1 = np.zeros((1, args.dim), np.float32)
+    one = np.zeros(1, np.int64)
+    n = 20_000
+
+    def per_call(fn) -> float:
+        return min(timeit.repeat(fn, number=n, repeat=5)) / n
+
+    fixed = {  # whole Python call minus the Rust call alone (timed inside the extension)
+        "predict": per_call(lambda: tiny.predict(x1))
+        - statistics.median(tiny._model._bench_predict(x1, n)),
+        "partial_fit": per_call(lambda: tiny.partial_fit(x1, one, one))
+        - statistics.median(tiny._model._bench_train(x1, one, one, n)),
+    }
+    print("Python layer's fixed cost per call (tiny model, 1 sample), and what it adds to the")
+    print("native time per call above:")
+    for row in rows:
+        native_call = row["native_us_min"] * row["batch"]
+        row["fixed_us_per_call"] = fixed[row["call"]] * 1e6
+        row["fixed_overhead"] = fixed[row["call"]] * 1e6 / native_call
+        print(
+            f"{row['call']:<12}{row['batch']:>7}{row['fixed_us_per_call']:>10.2f} µs"
+            f"{row['fixed_overhead']:>10.2%}"
+        )
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"dim": args.dim, "float64": args.float64, "rows": rows}, f, indent=2)
