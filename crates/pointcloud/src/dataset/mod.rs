@@ -65,7 +65,7 @@ pub enum DatasetError {
         reason: String,
     },
     /// File-system error on a path.
-    #[error("{}: {source}", path.display())]
+    #[error("cannot access {}", path.display())]
     Io {
         /// The file or directory.
         path: PathBuf,
@@ -113,7 +113,7 @@ pub enum DatasetError {
         frame: u32,
     },
     /// The GOOD descriptor failed on a view.
-    #[error("collection {collection}, instance {instance}, frame {frame}: {source}")]
+    #[error("collection {collection}, instance {instance}, frame {frame}: GOOD descriptor failed")]
     Good {
         /// Collection index.
         collection: u32,
