@@ -1,5 +1,6 @@
-//! Data access for Python: datasets written by `lgdm gen-dataset`, the GOOD descriptor and
-//! dataset-wide GOOD feature tables, all from `lgdm_pointcloud`, as numpy arrays.
+//! Data access for Python: datasets written by `lgdm gen-dataset`, the GOOD descriptor,
+//! dataset-wide GOOD feature tables, projection of clouds to depth / RGB-D images and best-view
+//! selection, all from `lgdm_pointcloud`, as numpy arrays.
 //!
 //! Python never re-implements what Rust already does: `python/train_ae` and researchers read
 //! the same sequences, labels and features the command line uses.
@@ -335,4 +336,86 @@ pub fn generate_dataset(
         })
         .map_err(dataset_error)?;
     Ok(PyDataset { inner })
+}
+
+/// Colours of an (N, 3) uint8 C-contiguous array, checked against the point count.
+fn colors(arr: &PyReadonlyArray2<'_, u8>, n: usize) -> PyResult<Vec<[u8; 3]>> {
+    let shape = arr.shape();
+    if shape[1] != 3 || shape[0] != n {
+        return Err(errors::input(format!(
+            "colors must have shape ({n}, 3) like the points, got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    let flat = arr
+        .as_slice()
+        .map_err(|e| errors::input(format!("colors must be C-contiguous: {e}")))?;
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+/// Projects a point cloud (camera optical frame, metres) to a square image, as the
+/// autoencoder's input: returns a dict with `depth_m` (size, size) float32 (0 where empty),
+/// `depth_normalized` (size, size) float32 in [0, 1] (near = 1, empty = 0) and `rgb`
+/// (size, size, 3) uint8 when colours are given, else None.
+#[pyfunction]
+#[pyo3(signature = (points, colors=None, size=224, margin=0.08, splat_px=0))]
+pub fn project_to_image<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f32>,
+    colors: Option<PyReadonlyArray2<'py, u8>>,
+    size: usize,
+    margin: f32,
+    splat_px: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let pts = self::points(&points)?;
+    let cols = colors
+        .as_ref()
+        .map(|c| self::colors(c, pts.len()))
+        .transpose()?;
+    let cloud = lgdm_pointcloud::PointCloud::new(pts, cols);
+    let params = lgdm_pointcloud::projection::ProjectionParams {
+        size,
+        margin,
+        splat_px,
+    };
+    let (image, normalized) = py
+        .detach(|| {
+            lgdm_pointcloud::projection::project_to_image(&cloud, &params).map(|img| {
+                let n = img.normalized_depth();
+                (img, n)
+            })
+        })
+        .map_err(|e| errors::input(e.to_string()))?;
+    let s = image.size;
+    let square = |v: Vec<f32>| Array2::from_shape_vec((s, s), v).expect("size² pixels");
+    let out = PyDict::new(py);
+    out.set_item("depth_m", square(image.depth_m).into_pyarray(py))?;
+    out.set_item("depth_normalized", square(normalized).into_pyarray(py))?;
+    match image.rgb {
+        Some(rgb) => {
+            let flat: Vec<u8> = rgb.iter().flatten().copied().collect();
+            let arr = numpy::ndarray::Array3::from_shape_vec((s, s, 3), flat).expect("size² × 3");
+            out.set_item("rgb", arr.into_pyarray(py))?;
+        }
+        None => out.set_item("rgb", py.None())?,
+    }
+    Ok(out)
+}
+
+/// Viewpoint entropy (nats) of a view: how evenly its (N, 3) float32 points cover a 32×32
+/// grid on the image plane; 0 for an empty cloud.
+#[pyfunction]
+pub fn view_entropy(points: PyReadonlyArray2<'_, f32>) -> PyResult<f32> {
+    let cloud = lgdm_pointcloud::PointCloud::new(self::points(&points)?, None);
+    Ok(lgdm_pointcloud::projection::view_entropy(&cloud))
+}
+
+/// Index of the view with the highest viewpoint entropy (the first on ties); None for no views.
+#[pyfunction]
+pub fn best_view(py: Python<'_>, views: Vec<PyReadonlyArray2<'_, f32>>) -> PyResult<Option<usize>> {
+    let clouds = views
+        .iter()
+        .map(|v| Ok(lgdm_pointcloud::PointCloud::new(self::points(v)?, None)))
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(py.detach(|| lgdm_pointcloud::projection::best_view(&clouds)))
 }

@@ -6,7 +6,7 @@
 //!
 //! - [`model`]: `Model`, the dual-memory model on numpy arrays, GIL released while it works.
 //! - [`data`]: `Dataset` (sequences as numpy arrays), the GOOD descriptor and feature tables,
-//!   dataset generation.
+//!   dataset generation, projection of clouds to depth / RGB-D images, best-view selection.
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
 //!
 //! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
@@ -43,5 +43,8 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data::good_descriptor, m)?)?;
     m.add_function(wrap_pyfunction!(data::good_features, m)?)?;
     m.add_function(wrap_pyfunction!(data::generate_dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(data::project_to_image, m)?)?;
+    m.add_function(wrap_pyfunction!(data::view_entropy, m)?)?;
+    m.add_function(wrap_pyfunction!(data::best_view, m)?)?;
     Ok(())
 }

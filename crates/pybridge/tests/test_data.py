@@ -122,3 +122,52 @@ def test_dataset_errors(small_dataset, tmp_path):
     target.write_bytes(target.read_bytes()[:-100])
     with pytest.raises(lgdm.DatasetError, match="truncated"):
         lgdm.Dataset(copy)
+
+
+def test_projection_to_rgbd_image(small_dataset):
+    frames, info = next(iter(small_dataset.sequences(0)))
+    colors = None if info["colors"] is None else info["colors"][0]
+    image = lgdm.project_to_image(frames[0], colors)
+    depth = image["depth_m"]
+    assert depth.shape == (224, 224) and depth.dtype == np.float32
+    filled = depth > 0
+    assert 0.1 < filled.mean() < 0.95, "the object fills a good part of the image"
+    z = frames[0][:, 2]
+    assert z.min() - 1e-6 <= depth[filled].min() and depth[filled].max() <= z.max() + 1e-6
+    norm = image["depth_normalized"]
+    assert norm.shape == (224, 224) and norm[~filled].max() == 0 and norm.max() == 1.0
+    if colors is not None:
+        assert image["rgb"].shape == (224, 224, 3) and image["rgb"].dtype == np.uint8
+        assert image["rgb"][filled].any()
+    else:
+        assert image["rgb"] is None
+    small = lgdm.project_to_image(frames[0], size=32, splat_px=1)
+    assert small["depth_m"].shape == (32, 32) and small["rgb"] is None
+
+
+def test_best_view_prefers_the_larger_silhouette():
+    rng = np.random.default_rng(0)
+    wide = np.column_stack(
+        [rng.uniform(-0.1, 0.1, 3000), rng.uniform(-0.1, 0.1, 3000), np.ones(3000)]
+    )
+    thin = wide * [0.05, 1, 1]  # an edge-on view
+    assert lgdm.view_entropy(wide) > lgdm.view_entropy(thin)
+    assert lgdm.best_view([thin, wide, thin]) == 1
+    assert lgdm.best_view([]) is None
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"points": np.zeros((5, 3))}, "in front of the camera"),
+        ({"points": np.ones((5, 3)), "colors": np.zeros((4, 3), np.uint8)}, r"shape \(5, 3\)"),
+        ({"points": np.ones((5, 3)), "colors": np.full((5, 3), 0.5)}, "uint8"),
+        ({"points": np.ones((5, 3)), "colors": np.full((5, 3), 300)}, "0..255"),
+        ({"points": np.ones((5, 3)), "size": 0}, "size"),
+        ({"points": np.ones((5, 3)), "margin": 0.7}, "margin"),
+        ({"points": np.ones((5, 2))}, r"shape \(N, 3\)"),
+    ],
+)
+def test_projection_errors(kwargs, message):
+    with pytest.raises(lgdm.InputError, match=message):
+        lgdm.project_to_image(**kwargs)

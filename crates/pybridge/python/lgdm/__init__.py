@@ -4,7 +4,8 @@
   context and intrinsic replay), scikit-learn style, numpy in and out.
 - :func:`config`: the full hyperparameters of a preset plus overrides.
 - Data: :class:`Dataset` (sequences of point clouds as numpy arrays, with labels),
-  :func:`good_descriptor`, :func:`good_features`, :func:`generate_dataset`.
+  :func:`good_descriptor`, :func:`good_features`, :func:`generate_dataset`,
+  :func:`project_to_image` (224×224 depth / RGB-D), :func:`view_entropy`, :func:`best_view`.
 - Errors: :class:`LgdmError` and its subclasses.
 
 Example::
@@ -19,7 +20,15 @@ Example::
     instance, category, activation = model.predict(X)
 """
 
-from ._data import Dataset, generate_dataset, good_descriptor, good_features
+from ._data import (
+    Dataset,
+    best_view,
+    generate_dataset,
+    good_descriptor,
+    good_features,
+    project_to_image,
+    view_entropy,
+)
 from ._errors import (
     CheckpointError,
     ConfigError,
@@ -42,8 +51,11 @@ __all__ = [
     "LgdmError",
     "NotFittedError",
     "__version__",
+    "best_view",
     "config",
     "generate_dataset",
     "good_descriptor",
     "good_features",
+    "project_to_image",
+    "view_entropy",
 ]

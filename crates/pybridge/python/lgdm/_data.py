@@ -8,6 +8,7 @@ Example::
     for frames, info in ds.sequences(0):
         descriptors = [lgdm.good_descriptor(points) for points in frames]
     table = lgdm.good_features(ds)          # {"features": (n, 675) float32, "category": ...}
+    image = lgdm.project_to_image(frames[0], info["colors"][0])   # 224×224 depth + RGB
 """
 
 from __future__ import annotations
@@ -20,7 +21,15 @@ import numpy as np
 from . import _lgdm
 from ._errors import InputError
 
-__all__ = ["Dataset", "generate_dataset", "good_descriptor", "good_features"]
+__all__ = [
+    "Dataset",
+    "best_view",
+    "generate_dataset",
+    "good_descriptor",
+    "good_features",
+    "project_to_image",
+    "view_entropy",
+]
 
 Dataset = _lgdm.Dataset
 
@@ -89,3 +98,60 @@ def generate_dataset(
         grasp_images=grasp_images,
         meshes=None if meshes is None else os.fspath(meshes),
     )
+
+
+def _colors(colors: Any, n: int) -> np.ndarray | None:
+    if colors is None:
+        return None
+    arr = np.asarray(colors)
+    if arr.dtype.kind not in "iu":
+        raise InputError(f"colors must be integers 0..255 (uint8), got dtype {arr.dtype}")
+    if arr.ndim != 2 or arr.shape != (n, 3):
+        raise InputError(f"colors must have shape ({n}, 3) like the points, got {arr.shape}")
+    if arr.size and (arr.min() < 0 or arr.max() > 255):
+        raise InputError("colors must be in 0..255")
+    return np.ascontiguousarray(arr, dtype=np.uint8)
+
+
+def project_to_image(
+    points: Any,
+    colors: Any = None,
+    size: int = 224,
+    margin: float = 0.08,
+    splat_px: int = 0,
+) -> dict[str, np.ndarray | None]:
+    """Projects a point cloud to a square depth or RGB-D image, the autoencoder's input.
+
+    ``points``: (N, 3) in the camera's optical frame (metres; as ``Dataset.sequences`` yields
+    them); ``colors``: optional (N, 3) uint8. The cloud is re-projected through the camera,
+    its bounding square plus ``margin`` (fraction of the side) fills the ``size``×``size``
+    image, each point is splatted (``splat_px`` pixels, 0 = from the point density) with a
+    z-buffer. Returns ``depth_m`` (size, size) float32 metres (0 = empty),
+    ``depth_normalized`` (size, size) float32 in [0, 1] (near = 1, empty = 0) and ``rgb``
+    (size, size, 3) uint8, or None without colours. Raises :class:`InputError` if no point
+    lies in front of the camera.
+    """
+    pts = _points(points)
+    for name, value in (("size", size), ("splat_px", splat_px)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise InputError(f"{name} must be an integer ≥ 0, got {value!r}")
+    if size < 1:
+        raise InputError("size must be at least 1")
+    if not (isinstance(margin, (int, float, np.floating)) and 0.0 <= margin < 0.5):
+        raise InputError(f"margin must be a number in [0, 0.5), got {margin!r}")
+    return _lgdm.project_to_image(
+        pts, _colors(colors, len(pts)), int(size), float(margin), int(splat_px)
+    )
+
+
+def view_entropy(points: Any) -> float:
+    """Viewpoint entropy (nats) of one view: the Shannon entropy of its points' distribution
+    over a 32×32 grid on the image plane; larger, more evenly covered silhouettes score
+    higher. 0 for an empty cloud."""
+    return _lgdm.view_entropy(_points(points))
+
+
+def best_view(views: Any) -> int | None:
+    """Index of the view (a list of (N, 3) clouds, e.g. a sequence's frames) with the highest
+    :func:`view_entropy`, the first on ties; None for an empty list."""
+    return _lgdm.best_view([_points(v) for v in views])

@@ -167,3 +167,19 @@ def generate_dataset(
     meshes: str | None = None,
 ) -> Dataset:
     """Generates a dataset as ``lgdm gen-dataset`` does and opens it."""
+
+def project_to_image(
+    points: npt.NDArray[np.float32],
+    colors: npt.NDArray[np.uint8] | None = None,
+    size: int = 224,
+    margin: float = 0.08,
+    splat_px: int = 0,
+) -> dict[str, npt.NDArray[Any] | None]:
+    """``depth_m``, ``depth_normalized`` (size, size) float32 and ``rgb`` (size, size, 3)
+    uint8 or None: the cloud projected to a square image."""
+
+def view_entropy(points: npt.NDArray[np.float32]) -> float:
+    """Viewpoint entropy (nats) of an (N, 3) float32 cloud."""
+
+def best_view(views: list[npt.NDArray[np.float32]]) -> int | None:
+    """Index of the view with the highest viewpoint entropy."""
