@@ -46,14 +46,19 @@ pub fn cache_dir() -> Result<PathBuf> {
     }
 }
 
-/// The embedded default dataset: the `small` preset, generated on first use.
-pub fn default_dataset(reporter: &Reporter) -> Result<PathBuf> {
-    let spec = DatasetSpec::small(DEFAULT_DATASET_SEED);
-    let dir = cache_dir()?.join("datasets").join(format!(
+/// Where the embedded default dataset lives (generated there on first use).
+pub fn default_dataset_dir() -> Result<PathBuf> {
+    Ok(cache_dir()?.join("datasets").join(format!(
         "small-seed{}-v{}",
         DEFAULT_DATASET_SEED,
         env!("CARGO_PKG_VERSION")
-    ));
+    )))
+}
+
+/// The embedded default dataset: the `small` preset, generated on first use.
+pub fn default_dataset(reporter: &Reporter) -> Result<PathBuf> {
+    let spec = DatasetSpec::small(DEFAULT_DATASET_SEED);
+    let dir = default_dataset_dir()?;
     if dir.join("manifest.json").is_file() {
         return Ok(dir);
     }

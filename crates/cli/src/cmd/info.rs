@@ -1,7 +1,29 @@
-//! `lgdm info`: version and build facts.
+//! `lgdm info`: version, cache locations and the embedded defaults.
 
-/// Prints the version of the binary.
+use crate::data;
+
+/// Prints the version, the cache directory and the embedded defaults.
 pub fn run() -> anyhow::Result<()> {
     println!("lgdm {}", env!("CARGO_PKG_VERSION"));
+    match (data::cache_dir(), data::default_dataset_dir()) {
+        (Ok(dir), Ok(dataset)) => {
+            println!("cache directory      {}", dir.display());
+            println!(
+                "embedded dataset     {} (small preset, seed {}, generated on first use)",
+                dataset.display(),
+                data::DEFAULT_DATASET_SEED
+            );
+        }
+        (Err(e), _) | (_, Err(e)) => println!("cache directory      unavailable: {e}"),
+    }
+    println!(
+        "default encoder      good (GOOD descriptor, {} bins per side → {} values)",
+        data::GOOD_BINS,
+        3 * data::GOOD_BINS * data::GOOD_BINS
+    );
+    println!(
+        "presets              {}",
+        lgdm_gdm::config::PRESETS.join(", ")
+    );
     Ok(())
 }
