@@ -7,6 +7,8 @@
 //! - [`model`]: `Model`, the dual-memory model on numpy arrays, GIL released while it works.
 //! - [`data`]: `Dataset` (sequences as numpy arrays), the GOOD descriptor and feature tables,
 //!   dataset generation, projection of clouds to depth / RGB-D images, best-view selection.
+//! - `ae` (cargo feature `ae`): the embedding side: Rust calls the torch autoencoder of
+//!   `python/train_ae` (`AutoEncoder::load`, `infer`) through an embedded interpreter.
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
 //!
 //! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
@@ -18,6 +20,8 @@
 //! ```
 #![allow(unsafe_code)] // pyo3's macros expand to FFI glue.
 
+#[cfg(feature = "ae")]
+pub mod ae;
 pub mod data;
 pub mod errors;
 pub mod model;
