@@ -37,3 +37,11 @@ step "python: lint, tests"
 "$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python
 # -rs: say why a test was skipped (test_cli.py needs the release `lgdm` binary built above).
 "$venv/bin/python" -m pytest -q -rs crates/pybridge/tests
+
+step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into the venv on first use)"
+"$venv/bin/python" -m pip install -q -e python/train_ae
+"$venv/bin/ruff" check python/train_ae
+"$venv/bin/python" -m pytest -q python/train_ae/tests
+
+step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
+VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --test ae_bridge
