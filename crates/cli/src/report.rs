@@ -19,15 +19,19 @@ fn num(m: &MeanStd, digits: usize) -> String {
 pub fn summary_table(m: &RunMetrics) -> String {
     let s = &m.summary;
     let mut out = String::new();
+    let epochs = if m.scenario == "batch" {
+        format!("{} epochs", m.epochs)
+    } else {
+        format!("{} epoch(s) per step", m.epochs)
+    };
     let _ = writeln!(
         out,
-        "scenario {} · encoder {} · {} trial(s) · replay {} · temporal context {} · {} epoch(s) per step",
+        "scenario {} · encoder {} · {} trial(s) · replay {} · temporal context {} · {epochs}",
         m.scenario,
         m.encoder,
         s.trials,
         if m.replay { "on" } else { "off" },
         if m.context { "on" } else { "off" },
-        m.epochs
     );
     let _ = writeln!(out, "{:<34} {:>16} {:>16}", "", "train", "test");
     let _ = writeln!(
