@@ -26,6 +26,7 @@ pub mod dataset;
 pub mod features;
 pub mod good;
 pub mod grasp;
+pub mod grasp_decode;
 pub mod image;
 pub mod import;
 pub mod math;
