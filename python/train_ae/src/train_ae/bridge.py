@@ -1,5 +1,8 @@
 """The functions the Rust side (crates/pybridge, through pyo3) calls. Keep these stable.
 
+    default_checkpoint() -> str
+        Absolute path of the shipped ``cpu`` checkpoint (package data ``weights/cpu.pt``);
+        FileNotFoundError if this installation does not have it.
     load(path) -> model
         A checkpoint written by ``python -m train_ae.train``, as a model in eval mode on the CPU.
     input_size(model) -> int
@@ -18,7 +21,7 @@ already C-contiguous float32; each output is one fresh array (no per-pixel Pytho
 Example::
 
     from train_ae import bridge
-    m = bridge.load("ae.pt")
+    m = bridge.load(bridge.default_checkpoint())        # or any checkpoint path
     x = bridge.preprocess(rgb, depth)[None]            # (1, 4, S, S)
     features, quality, cos2t, sin2t, width = bridge.infer(m, x)
 """
@@ -35,7 +38,22 @@ from .data import normalize_rgbd
 from .grasp import WIDTH_SCALE_PX
 from .model import GraspAutoencoder
 
-__all__ = ["WIDTH_SCALE_PX", "infer", "input_size", "load", "preprocess"]
+__all__ = ["WIDTH_SCALE_PX", "default_checkpoint", "infer", "input_size", "load", "preprocess"]
+
+DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "cpu.pt"
+"""The shipped ``cpu`` checkpoint (package data; how it was made: the package README)."""
+
+
+def default_checkpoint() -> str:
+    """Absolute path of the shipped ``cpu`` checkpoint; FileNotFoundError if it is absent."""
+    path = DEFAULT_CHECKPOINT
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"the default train_ae checkpoint {path} is missing: this installation of train_ae "
+            f"was built without its package data (reinstall it from the lgdm repository, "
+            f"`pip install -e python/train_ae`) or pass a checkpoint path explicitly "
+            f"(train one with `python -m train_ae.train`)")
+    return str(path)
 
 
 def load(path: str | Path) -> GraspAutoencoder:

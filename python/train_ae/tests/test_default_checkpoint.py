@@ -1,0 +1,44 @@
+"""The shipped default checkpoint: bridge.default_checkpoint() names a loadable `cpu` model
+whose maps and features have the bridge's shapes; a missing file is a clear FileNotFoundError."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from train_ae import bridge
+from train_ae.checkpoint import FORMAT, load_checkpoint
+from train_ae.model import FEATURE_DIM
+
+SHIPPED = bridge.DEFAULT_CHECKPOINT.is_file()
+
+
+def test_missing_default_checkpoint_raises_a_clear_error(monkeypatch, tmp_path):
+    monkeypatch.setattr(bridge, "DEFAULT_CHECKPOINT", tmp_path / "weights" / "cpu.pt")
+    with pytest.raises(FileNotFoundError, match="default train_ae checkpoint"):
+        bridge.default_checkpoint()
+
+
+@pytest.mark.skipif(not SHIPPED, reason="weights/cpu.pt not present in this checkout")
+def test_default_checkpoint_loads_as_the_cpu_configuration():
+    path = bridge.default_checkpoint()
+    assert Path(path).is_absolute()
+    model, ckpt = load_checkpoint(path)
+    assert ckpt["format"] == FORMAT
+    assert model.config.name == "cpu"
+    assert bridge.input_size(model) == 112
+    heldout = ckpt["metrics"]["heldout"]
+    assert heldout["n"] > 0 and 0 <= heldout["correct"] <= heldout["n"]
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (112, 112, 3), dtype=np.uint8)
+    depth = rng.uniform(0.5, 0.7, (112, 112)).astype(np.float32)
+    x = np.stack([bridge.preprocess(rgb, depth)] * 2)
+    features, q, c, s, w = bridge.infer(bridge.load(path), x)
+    assert features.shape == (2, FEATURE_DIM)
+    np.testing.assert_allclose(np.linalg.norm(features, axis=1), 1.0, atol=1e-5)
+    for m in (q, c, s, w):
+        assert m.shape == (2, 112, 112) and m.dtype == np.float32
+        assert np.isfinite(m).all()
