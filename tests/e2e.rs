@@ -110,6 +110,33 @@ fn without_times(v: &Value) -> Value {
     }
 }
 
+/// Path and values of the first difference between two JSON values, if any.
+fn first_difference(a: &Value, b: &Value, path: &str) -> Option<String> {
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            for k in x.keys().chain(y.keys()) {
+                let p = format!("{path}.{k}");
+                match (x.get(k), y.get(k)) {
+                    (Some(u), Some(v)) => {
+                        if let Some(d) = first_difference(u, v, &p) {
+                            return Some(d);
+                        }
+                    }
+                    _ => return Some(format!("{p}: present in only one")),
+                }
+            }
+            None
+        }
+        (Value::Array(x), Value::Array(y)) if x.len() == y.len() => x
+            .iter()
+            .zip(y)
+            .enumerate()
+            .find_map(|(i, (u, v))| first_difference(u, v, &format!("{path}[{i}]"))),
+        _ if a == b => None,
+        _ => Some(format!("{path}: {a} vs {b}")),
+    }
+}
+
 fn run_scenario(scenario: &str, extra: &[&str]) {
     let base = work_dir().join(format!("run-{scenario}{}", extra.join("")));
     let a = train(scenario, &base.join("a"), extra);
@@ -311,4 +338,85 @@ fn bad_input_gives_clear_errors_and_no_output() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("nonsense"));
+}
+
+#[test]
+fn merged_single_trial_runs_equal_one_multi_trial_run() {
+    let base = work_dir().join("merge");
+    let whole = train("ni", &base.join("whole"), &[]);
+    let cache = work_dir().join("cache");
+    for (seed, dir) in [("5", "s5"), ("6", "s6")] {
+        check(
+            lgdm(&cache)
+                .args(["train", "--scenario", "ni", "--trials", "1", "--seed", seed])
+                .args(["--progress", "none", "--dataset"])
+                .arg(tiny_dataset())
+                .arg("--out")
+                .arg(base.join(dir))
+                .output()
+                .unwrap(),
+            "single-trial train",
+        );
+    }
+    // Given in reverse order: merge sorts the trials by seed.
+    let out = check(
+        lgdm(&cache)
+            .arg("merge")
+            .arg(base.join("s6"))
+            .arg(base.join("s5"))
+            .arg("--out")
+            .arg(base.join("merged"))
+            .output()
+            .unwrap(),
+        "merge",
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("category accuracy (G-SM)"));
+    let merged: Value =
+        serde_json::from_str(&std::fs::read_to_string(base.join("merged/metrics.json")).unwrap())
+            .unwrap();
+    if let Some(d) = first_difference(&without_times(&merged), &without_times(&whole), "") {
+        panic!("merged metrics.json differs from the 2-trial run's: {d}");
+    }
+    for t in ["model-trial0.lgdm", "model-trial1.lgdm"] {
+        assert_eq!(
+            std::fs::read(base.join("merged").join(t)).unwrap(),
+            std::fs::read(base.join("whole").join(t)).unwrap(),
+            "{t} differs"
+        );
+    }
+    for f in ["summary.txt", "config.toml", "nodes.png", "accuracy.png"] {
+        assert!(base.join("merged").join(f).is_file(), "{f} missing");
+    }
+
+    // The same trial twice, or two different experiments, are refused before anything is
+    // written.
+    check(
+        lgdm(&cache)
+            .args(["train", "--scenario", "ni", "--trials", "1", "--seed", "6"])
+            .args(["--no-replay", "--progress", "none", "--dataset"])
+            .arg(tiny_dataset())
+            .arg("--out")
+            .arg(base.join("s6-noreplay"))
+            .output()
+            .unwrap(),
+        "no-replay train",
+    );
+    for (runs, expect) in [(["s5", "s5"], "seed 5"), (["s5", "s6-noreplay"], "replay")] {
+        let refused = base.join(format!("refused-{}", runs[1]));
+        let out = lgdm(&cache)
+            .arg("merge")
+            .arg(base.join(runs[0]))
+            .arg(base.join(runs[1]))
+            .arg("--out")
+            .arg(&refused)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "{runs:?}: {err}");
+        assert!(
+            !refused.exists(),
+            "{runs:?}: output written despite the error"
+        );
+    }
 }

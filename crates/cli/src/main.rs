@@ -33,6 +33,8 @@ enum Command {
     GenDataset(cmd::gen_dataset::Args),
     /// Compute per-view features of a dataset and write them with labels as .npz.
     Features(cmd::features::Args),
+    /// Combine the trials of several run directories of one experiment into one run.
+    Merge(cmd::merge::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -50,6 +52,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(args) => cmd::eval::run(args),
         Command::GenDataset(args) => cmd::gen_dataset::run(args),
         Command::Features(args) => cmd::features::run(args),
+        Command::Merge(args) => cmd::merge::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

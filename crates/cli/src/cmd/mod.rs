@@ -4,4 +4,5 @@ pub mod eval;
 pub mod features;
 pub mod gen_dataset;
 pub mod info;
+pub mod merge;
 pub mod train;
