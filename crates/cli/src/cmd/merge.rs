@@ -85,6 +85,7 @@ fn difference(a: &Run, b: &Run) -> Option<String> {
     same!("categories", ma.categories, mb.categories);
     same!("eval_every", ca.eval_every, cb.eval_every);
     same!("eval_samples", ca.eval_samples, cb.eval_samples);
+    same!("train_samples", ca.train_samples, cb.train_samples);
     same!("validate", ca.validate, cb.validate);
     let mut ga = ca.gdm.clone();
     let mut gb = cb.gdm.clone();
@@ -278,6 +279,7 @@ mod tests {
             epochs: 1,
             eval_every: 1,
             eval_samples: 3000,
+            train_samples: 0,
             validate: false,
             hyperparameters_from: "preset".into(),
             gdm: lgdm_gdm::GdmConfig {

@@ -59,6 +59,11 @@ pub struct Args {
     /// the trial's seed); 0 = all. The final figures always use the whole test set.
     #[arg(long, default_value_t = 3000)]
     pub eval_samples: usize,
+    /// Batch only: train on about N samples per epoch, the same per-trial subset of whole
+    /// training sequences every epoch, N / categories per category (the paper's batch runs use
+    /// 3000); 0 = all training sequences.
+    #[arg(long, default_value_t = 0)]
+    pub train_samples: usize,
     /// Validation mode for choosing hyperparameters: the last two training collections (in
     /// manifest order) stand in for the test set and the test collections are not touched.
     #[arg(long)]
@@ -95,6 +100,9 @@ pub struct RunConfig {
     pub eval_every: usize,
     /// Per-step evaluation sample cap (0 = all).
     pub eval_samples: usize,
+    /// Batch: training-sample cap per epoch (0 = all).
+    #[serde(default)]
+    pub train_samples: usize,
     /// Validation mode: the evaluation set is two training collections, not the test set.
     pub validate: bool,
     /// Where the hyperparameters came from.
@@ -175,6 +183,9 @@ pub fn run(args: Args) -> Result<()> {
     if args.trials == 0 {
         bail!("--trials must be at least 1");
     }
+    if args.train_samples > 0 && args.scenario != Scenario::Batch {
+        bail!("--train-samples applies to --scenario batch only");
+    }
     if args.epochs == Some(0) {
         bail!("--epochs must be at least 1");
     }
@@ -233,6 +244,7 @@ pub fn run(args: Args) -> Result<()> {
         replay,
         eval_every: 1,
         eval_samples: args.eval_samples,
+        train_samples: args.train_samples,
         seed: args.seed,
     };
     let steps = crate::experiment::plan_trial(&run_data, &base).steps.len();
@@ -247,6 +259,7 @@ pub fn run(args: Args) -> Result<()> {
         epochs,
         eval_every,
         eval_samples: args.eval_samples,
+        train_samples: args.train_samples,
         validate: args.validate,
         hyperparameters_from: from,
         gdm: config,

@@ -32,6 +32,9 @@ pub struct TrialSettings {
     /// Per-step evaluations use at most this many samples (whole sequences drawn with the
     /// trial's seed) from each set; 0 = all. The final figures always use every test sample.
     pub eval_samples: usize,
+    /// Batch only: train on about this many samples, a fixed per-trial subset of whole training
+    /// sequences stratified by category (the paper's batch runs use 3000); 0 = all.
+    pub train_samples: usize,
     /// Trial seed: plan, held-out instances and the network's RNG.
     pub seed: u64,
 }
@@ -118,7 +121,7 @@ pub fn subsample(seqs: &[Vec<usize>], max_samples: usize, seed: u64) -> Vec<Vec<
 /// Builds the plan of one trial.
 pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
-    scenario::plan(
+    let mut plan = scenario::plan(
         s.scenario,
         data.rows(),
         &data.train_collections,
@@ -126,7 +129,52 @@ pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
         &data.category_names,
         s.epochs,
         &mut rng,
-    )
+    );
+    if s.scenario == Scenario::Batch && s.train_samples > 0 {
+        if let Some(first) = plan.steps.first() {
+            let keep = stratified_subset(
+                &first.sequences,
+                s.train_samples,
+                |q| data.table.category[q[0]],
+                s.seed ^ 0x7472_6169_6e5f_7375,
+            );
+            for step in &mut plan.steps {
+                step.sequences.retain(|q| keep.contains(&q[0]));
+            }
+        }
+    }
+    plan
+}
+
+/// First rows of whole sequences holding about `samples` samples, `samples / categories` per
+/// category (sequences drawn at random per category until the category's share is reached; a
+/// category with less data gives all it has).
+pub fn stratified_subset(
+    seqs: &[Vec<usize>],
+    samples: usize,
+    category: impl Fn(&Vec<usize>) -> u32,
+    seed: u64,
+) -> std::collections::BTreeSet<usize> {
+    let mut by_category: std::collections::BTreeMap<u32, Vec<&Vec<usize>>> = Default::default();
+    for q in seqs.iter().filter(|q| !q.is_empty()) {
+        by_category.entry(category(q)).or_default().push(q);
+    }
+    let share = samples.div_ceil(by_category.len().max(1));
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut keep = std::collections::BTreeSet::new();
+    for group in by_category.values_mut() {
+        group.sort_by_key(|q| q[0]);
+        rand::seq::SliceRandom::shuffle(&mut group[..], &mut rng);
+        let mut n = 0;
+        for q in group.iter() {
+            if n >= share {
+                break;
+            }
+            n += q.len();
+            keep.insert(q[0]);
+        }
+    }
+    keep
 }
 
 fn figures(scores: &Scores) -> Figures {
@@ -311,7 +359,28 @@ pub fn run_trial(
 
 #[cfg(test)]
 mod tests {
-    use super::subsample;
+    use super::{stratified_subset, subsample};
+
+    #[test]
+    fn stratified_subset_takes_each_categorys_share_in_whole_sequences() {
+        // 3 categories: 0 and 1 with eight 10-row sequences, 2 with a single one.
+        let seqs: Vec<Vec<usize>> = (0..17).map(|i| (i * 10..i * 10 + 10).collect()).collect();
+        let cat = |q: &Vec<usize>| match q[0] / 10 {
+            0..8 => 0,
+            8..16 => 1,
+            _ => 2,
+        };
+        let keep = stratified_subset(&seqs, 90, cat, 7);
+        let count = |c| keep.iter().filter(|&&r| cat(&vec![r]) == c).count();
+        assert_eq!((count(0), count(1), count(2)), (3, 3, 1));
+        assert!(
+            keep.iter().all(|r| r % 10 == 0),
+            "whole sequences, by first row"
+        );
+        assert_eq!(keep, stratified_subset(&seqs, 90, cat, 7));
+        assert_ne!(keep, stratified_subset(&seqs, 90, cat, 8));
+        assert_eq!(stratified_subset(&seqs, 10_000, cat, 7).len(), 17);
+    }
 
     #[test]
     fn subsample_keeps_whole_sequences_in_order_under_the_cap() {
