@@ -42,3 +42,21 @@ def test_default_checkpoint_loads_as_the_cpu_configuration():
     for m in (q, c, s, w):
         assert m.shape == (2, 112, 112) and m.dtype == np.float32
         assert np.isfinite(m).all()
+
+
+def test_object_map_from_a_gen_dataset_index(tmp_path):
+    import json
+
+    from train_ae.data import read_object_map
+    from train_ae.make_default import write_object_map
+
+    index = tmp_path / "index.json"
+    index.write_text(json.dumps([
+        {"number": 100, "prefix": "01/pcd0100", "object": "mug_01"},
+        {"number": 101, "prefix": "01/pcd0101", "object": "mug_02"},
+        {"number": 200, "prefix": "02/pcd0200", "object": "mug_01"},
+    ]))
+    out = tmp_path / "objects.txt"
+    assert write_object_map(index, out) == 3
+    assert read_object_map(out) == {"pcd0100": "mug_01", "pcd0101": "mug_02",
+                                    "pcd0200": "mug_01"}
