@@ -59,6 +59,9 @@ pub enum AeError {
     /// Python raised during inference, or returned something unexpected.
     #[error("autoencoder inference: {0}")]
     Python(String),
+    /// `train_ae.bridge.default_checkpoint()` is missing or names no file.
+    #[error("no default autoencoder checkpoint: {0}")]
+    NoDefaultCheckpoint(String),
 }
 
 /// Output of [`AutoEncoder::infer`] for n images of h × w pixels.
@@ -160,6 +163,43 @@ pub fn prepare(py: Python<'_>) -> Result<Bound<'_, PyModule>, AeError> {
         bridge = Some(m);
     }
     Ok(bridge.expect("imported"))
+}
+
+/// The shipped default checkpoint: the path `train_ae.bridge.default_checkpoint()` returns
+/// (`weights/cpu.pt` in the train_ae package). Starts the interpreter and imports numpy, torch
+/// and `train_ae.bridge` like [`AutoEncoder::load`]; [`AeError::NoDefaultCheckpoint`] when this
+/// train_ae has no such function or the file is absent.
+pub fn default_checkpoint() -> Result<PathBuf, AeError> {
+    Python::initialize();
+    Python::attach(|py| {
+        let bridge = prepare(py)?;
+        if !bridge.hasattr("default_checkpoint").unwrap_or(false) {
+            return Err(AeError::NoDefaultCheckpoint(format!(
+                "the installed train_ae ({}) has no `bridge.default_checkpoint()`: it predates \
+                 the shipped weights; update it (`pip install -e python/train_ae`)",
+                module_file(&bridge)
+            )));
+        }
+        let path: PathBuf = bridge
+            .call_method0("default_checkpoint")
+            .and_then(|p| p.extract::<String>())
+            .map(PathBuf::from)
+            .map_err(|e| AeError::NoDefaultCheckpoint(e.to_string()))?;
+        if !path.is_file() {
+            return Err(AeError::NoDefaultCheckpoint(format!(
+                "`train_ae.bridge.default_checkpoint()` names {}, which is not a file",
+                path.display()
+            )));
+        }
+        Ok(path)
+    })
+}
+
+/// Where a module was imported from, for messages.
+fn module_file(m: &Bound<'_, PyModule>) -> String {
+    m.getattr("__file__")
+        .and_then(|f| f.extract::<String>())
+        .unwrap_or_else(|_| "location unknown".into())
 }
 
 /// A loaded autoencoder (model in eval mode on the CPU) and the bridge module.
