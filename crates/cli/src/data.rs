@@ -1,5 +1,10 @@
 //! Where runs get their data: the embedded default dataset (generated into a cache directory on
 //! first use) and per-dataset, per-encoder feature caches.
+//!
+//! Features come from a [`FeatureSource`]: GOOD (Rust, always built) or the torch autoencoder
+//! with a checkpoint (`--encoder ae`, module [`ae`]; cargo feature `ae`).
+
+mod ae;
 
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::dataset::{self, Dataset, DatasetSpec, Progress};
@@ -28,6 +33,56 @@ impl Encoder {
         match self {
             Encoder::Good => "good",
             Encoder::Ae => "ae",
+        }
+    }
+}
+
+/// What computes a dataset's features: an encoder and, for the autoencoder, its checkpoint.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FeatureSource {
+    /// The GOOD descriptor ([`GOOD_BINS`] bins per side).
+    Good,
+    /// The autoencoder's 256-d feature, from this checkpoint.
+    Ae {
+        /// The checkpoint file (absolute).
+        checkpoint: PathBuf,
+    },
+}
+
+impl FeatureSource {
+    /// Checks that `encoder` can run in this build and resolves the autoencoder's checkpoint:
+    /// `ae_checkpoint` (`--ae-checkpoint`), else the one shipped with train_ae. Fails early, before
+    /// any data is read, when the binary lacks the `ae` feature or no checkpoint can be found.
+    pub fn resolve(encoder: Encoder, ae_checkpoint: Option<&Path>) -> Result<FeatureSource> {
+        match encoder {
+            Encoder::Good => {
+                if let Some(p) = ae_checkpoint {
+                    bail!(
+                        "--ae-checkpoint {} only applies to --encoder ae (the encoder is good)",
+                        p.display()
+                    );
+                }
+                Ok(FeatureSource::Good)
+            }
+            Encoder::Ae => Ok(FeatureSource::Ae {
+                checkpoint: ae::resolve_checkpoint(ae_checkpoint)?,
+            }),
+        }
+    }
+
+    /// The encoder.
+    pub fn encoder(&self) -> Encoder {
+        match self {
+            FeatureSource::Good => Encoder::Good,
+            FeatureSource::Ae { .. } => Encoder::Ae,
+        }
+    }
+
+    /// The autoencoder checkpoint, if this source has one.
+    pub fn ae_checkpoint(&self) -> Option<&Path> {
+        match self {
+            FeatureSource::Good => None,
+            FeatureSource::Ae { checkpoint } => Some(checkpoint),
         }
     }
 }
@@ -97,7 +152,7 @@ pub fn default_dataset(reporter: &Reporter) -> Result<PathBuf> {
 }
 
 /// FNV-1a, 64 bit: a stable hash for cache keys.
-fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
+pub fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         h ^= u64::from(b);
         h = h.wrapping_mul(0x0100_0000_01b3);
@@ -105,12 +160,26 @@ fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
     h
 }
 
-/// A key that changes when the dataset's files or the encoder change.
-fn feature_key(ds: &Dataset, encoder: Encoder) -> Result<u64> {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    h = fnv1a(h, encoder.name().as_bytes());
+/// FNV-1a offset basis.
+pub const FNV1A_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a hash of a file's bytes (the autoencoder checkpoint's identity).
+pub fn file_hash(path: &Path) -> Result<u64> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(fnv1a(FNV1A_START, &bytes))
+}
+
+/// A key that changes when the dataset's files, the encoder or the autoencoder checkpoint's
+/// bytes change.
+fn feature_key(ds: &Dataset, source: &FeatureSource) -> Result<u64> {
+    let mut h = FNV1A_START;
+    h = fnv1a(h, source.encoder().name().as_bytes());
     h = fnv1a(h, &(GOOD_BINS as u64).to_le_bytes());
     h = fnv1a(h, env!("CARGO_PKG_VERSION").as_bytes());
+    if let Some(checkpoint) = source.ae_checkpoint() {
+        h = fnv1a(h, ae::PIPELINE.as_bytes());
+        h = fnv1a(h, &file_hash(checkpoint)?.to_le_bytes());
+    }
     let manifest = ds.dir().join("manifest.json");
     h = fnv1a(
         h,
@@ -131,11 +200,11 @@ fn feature_key(ds: &Dataset, encoder: Encoder) -> Result<u64> {
     Ok(h)
 }
 
-/// Computes a dataset's features with an encoder, or reads them from the cache.
-pub fn features(ds: &Dataset, encoder: Encoder, reporter: &Reporter) -> Result<FeatureTable> {
-    let key = feature_key(ds, encoder)?;
+/// Computes a dataset's features, or reads them from the cache.
+pub fn features(ds: &Dataset, source: &FeatureSource, reporter: &Reporter) -> Result<FeatureTable> {
+    let key = feature_key(ds, source)?;
     let dir = cache_dir()?.join("features");
-    let path = dir.join(format!("{key:016x}-{}.npz", encoder.name()));
+    let path = dir.join(format!("{key:016x}-{}.npz", source.encoder().name()));
     if path.is_file() {
         match FeatureTable::read_npz(&path) {
             Ok(t) => return Ok(t),
@@ -145,7 +214,7 @@ pub fn features(ds: &Dataset, encoder: Encoder, reporter: &Reporter) -> Result<F
             )),
         }
     }
-    let table = compute_features(ds, encoder, reporter)?;
+    let table = compute_features(ds, source, reporter)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let tmp = dir.join(format!(".tmp-{}-{key:016x}.npz", std::process::id()));
     table
@@ -158,11 +227,11 @@ pub fn features(ds: &Dataset, encoder: Encoder, reporter: &Reporter) -> Result<F
 /// Computes features without the cache.
 pub fn compute_features(
     ds: &Dataset,
-    encoder: Encoder,
+    source: &FeatureSource,
     reporter: &Reporter,
 ) -> Result<FeatureTable> {
-    match encoder {
-        Encoder::Good => {
+    match source {
+        FeatureSource::Good => {
             let bar = reporter.bar("GOOD features", 0);
             let t = lgdm_pointcloud::features::good_features(ds, GOOD_BINS, &mut |p: Progress| {
                 bar.update(p.stage, p.done, p.total)
@@ -171,10 +240,7 @@ pub fn compute_features(
             bar.finish();
             Ok(t)
         }
-        Encoder::Ae => bail!(
-            "the autoencoder encoder (--encoder ae) is not available in this build yet: it needs the \
-             python/train_ae package with torch and the pyo3 bridge; use --encoder good"
-        ),
+        FeatureSource::Ae { checkpoint } => ae::features(ds, checkpoint, reporter),
     }
 }
 

@@ -36,6 +36,10 @@ pub struct Args {
     /// Feature encoder the model was trained with.
     #[arg(long, value_enum, default_value_t = Encoder::Good)]
     pub encoder: Encoder,
+    /// Autoencoder checkpoint for `--encoder ae`: the one the model was trained with (see the
+    /// run's config.toml; default: the one shipped with train_ae).
+    #[arg(long, value_name = "PATH")]
+    pub ae_checkpoint: Option<PathBuf>,
     /// Collections to score.
     #[arg(long, value_enum, default_value_t = EvalSplit::Test)]
     pub split: EvalSplit,
@@ -53,10 +57,11 @@ pub struct Args {
 /// Runs `lgdm eval`.
 pub fn run(args: Args) -> Result<()> {
     let reporter = Reporter::new(args.progress);
+    let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
     let gdm = Gdm::load(&args.model)
         .with_context(|| format!("loading the model {}", args.model.display()))?;
     let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
-    let table = data::features(&ds, args.encoder, &reporter)?;
+    let table = data::features(&ds, &source, &reporter)?;
     if table.dim != gdm.dim() {
         bail!(
             "the model expects {}-d features but the {} encoder gives {}-d: was it trained with another encoder?",

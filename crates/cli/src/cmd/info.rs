@@ -22,6 +22,14 @@ pub fn run() -> anyhow::Result<()> {
         3 * data::GOOD_BINS * data::GOOD_BINS
     );
     println!(
+        "autoencoder          {}",
+        if cfg!(feature = "ae") {
+            "--encoder ae built in (torch + train_ae from $VIRTUAL_ENV, $LGDM_VENV or ~/.cache/lgdm/venv)"
+        } else {
+            "--encoder ae not built in (rebuild with `cargo build --release -p lgdm-cli --features ae`)"
+        }
+    );
+    println!(
         "presets              {}",
         lgdm_gdm::config::PRESETS.join(", ")
     );

@@ -27,9 +27,14 @@ pub struct Args {
     /// generated into the cache directory on first use).
     #[arg(long)]
     pub dataset: Option<PathBuf>,
-    /// Feature encoder.
+    /// Feature encoder: good (GOOD descriptor, Rust) or ae (the torch autoencoder; needs a
+    /// build with `--features ae` and torch + python/train_ae in a venv).
     #[arg(long, value_enum, default_value_t = Encoder::Good)]
     pub encoder: Encoder,
+    /// Autoencoder checkpoint for `--encoder ae` (default: the one shipped with train_ae,
+    /// `train_ae.bridge.default_checkpoint()`).
+    #[arg(long, value_name = "PATH")]
+    pub ae_checkpoint: Option<PathBuf>,
     /// GDM hyperparameters from a TOML file (a `GdmConfig`, or a run's `config.toml`).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
@@ -109,6 +114,18 @@ pub struct RunConfig {
     pub hyperparameters_from: String,
     /// The dual memory's hyperparameters.
     pub gdm: GdmConfig,
+}
+
+/// `config.toml` as written: the run's settings and, for `--encoder ae`, the checkpoint (path
+/// and FNV-1a hash of its bytes).
+#[derive(Serialize)]
+struct RunConfigFile<'a> {
+    #[serde(flatten)]
+    run: &'a RunConfig,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ae_checkpoint: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ae_checkpoint_fnv1a: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -191,13 +208,14 @@ pub fn run(args: Args) -> Result<()> {
     }
     let reporter = Reporter::new(args.progress);
     let (config, from) = resolve_config(&args)?;
+    let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
     let replay = if args.no_replay {
         false
     } else {
         args.replay || args.scenario.replay_by_default()
     };
     let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
-    let table = data::features(&ds, args.encoder, &reporter)?;
+    let table = data::features(&ds, &source, &reporter)?;
     let manifest = ds.manifest();
     let split = |s| {
         manifest
@@ -264,9 +282,17 @@ pub fn run(args: Args) -> Result<()> {
         hyperparameters_from: from,
         gdm: config,
     };
+    let config_file = RunConfigFile {
+        run: &run_config,
+        ae_checkpoint: source.ae_checkpoint().map(|p| p.display().to_string()),
+        ae_checkpoint_fnv1a: source
+            .ae_checkpoint()
+            .map(|p| data::file_hash(p).map(|h| format!("{h:016x}")))
+            .transpose()?,
+    };
     write_atomic(
         &out.join("config.toml"),
-        toml::to_string_pretty(&run_config)?.as_bytes(),
+        toml::to_string_pretty(&config_file)?.as_bytes(),
     )?;
 
     reporter.message(&format!(
