@@ -1,0 +1,64 @@
+//! Time per image of the autoencoder through the bridge (`AutoEncoder::infer`: numpy copy in,
+//! torch forward, five arrays copied out), `cpu` configuration (112×112), batch 1 and 16, and of
+//! `AutoEncoder::preprocess` for one image. The same forward timed from plain Python:
+//! `python -m train_ae.bench --config cpu --batch-size 16`. Run with
+//! `cargo bench -p lgdm-pybridge --features ae --bench ae_infer` (a venv with torch and train_ae
+//! as for the `ae_bridge` test). Criterion reports the time per call; divide by the batch size.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use lgdm_pybridge::ae::{self, AutoEncoder};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// A seeded, untrained `cpu` checkpoint (timing does not depend on the weights).
+fn checkpoint() -> std::path::PathBuf {
+    let path = std::env::temp_dir().join(format!("lgdm-ae-bench-{}.pt", std::process::id()));
+    Python::initialize();
+    Python::attach(|py| {
+        ae::prepare(py).unwrap_or_else(|e| panic!("{e}"));
+        let locals = PyDict::new(py);
+        locals
+            .set_item("path", path.to_string_lossy().into_owned())
+            .unwrap();
+        py.run(
+            c"import torch
+from train_ae.model import GraspAutoencoder, ModelConfig
+from train_ae.checkpoint import save_checkpoint
+torch.manual_seed(0)
+save_checkpoint(path, GraspAutoencoder(ModelConfig.preset('cpu')), {})",
+            None,
+            Some(&locals),
+        )
+        .unwrap_or_else(|e| panic!("writing the checkpoint: {e}"));
+    });
+    path
+}
+
+fn bench(c: &mut Criterion) {
+    let ckpt = checkpoint();
+    let model = AutoEncoder::load(&ckpt).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::remove_file(&ckpt).ok();
+    let s = model.input_size();
+    let mut group = c.benchmark_group("ae_cpu");
+    group.sample_size(20);
+    for n in [1usize, 16] {
+        // Deterministic values in [-0.5, 0.5): like a preprocessed image's range.
+        let x: Vec<f32> = (0..n * 4 * s * s)
+            .map(|i| ((i as u64).wrapping_mul(2_654_435_761) % 1000) as f32 / 1000.0 - 0.5)
+            .collect();
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_with_input(BenchmarkId::new("infer", n), &n, |b, &n| {
+            b.iter(|| model.infer(&x, n, s, s).unwrap())
+        });
+    }
+    let rgb: Vec<u8> = (0..s * s * 3).map(|i| (i * 7 % 251) as u8).collect();
+    let depth: Vec<f32> = (0..s * s).map(|i| 0.6 + 0.001 * (i % s) as f32).collect();
+    group.throughput(Throughput::Elements(1));
+    group.bench_function("preprocess", |b| {
+        b.iter(|| model.preprocess(&rgb, &depth, s, s).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
