@@ -45,3 +45,4 @@ step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into t
 
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --test ae_bridge
+VIRTUAL_ENV="$venv" cargo test --release -p lgdm-cli --features ae --test e2e_ae
