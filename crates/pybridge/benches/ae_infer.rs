@@ -1,12 +1,17 @@
 //! Time per image of the autoencoder through the bridge (`AutoEncoder::infer`: numpy copy in,
-//! torch forward, five arrays copied out), `cpu` configuration (112×112), batch 1 and 16, and of
-//! `AutoEncoder::preprocess` for one image. The same forward timed from plain Python:
-//! `python -m train_ae.bench --config cpu --batch-size 16`. Run with
-//! `cargo bench -p lgdm-pybridge --features ae --bench ae_infer` (a venv with torch and train_ae
-//! as for the `ae_bridge` test). Criterion reports the time per call; divide by the batch size.
+//! torch forward, five arrays copied out), `cpu` configuration (112×112), batch 1 and 16, beside
+//! the same `train_ae.bridge.infer` call made on a ready numpy array with no copies (`python_call`,
+//! same process: the difference is the bridge's cost), and `AutoEncoder::preprocess` for one
+//! image. The standalone-Python figure: `python -m train_ae.bench --config cpu --batch-size 16`.
+//! Run with `cargo bench -p lgdm-pybridge --features ae --bench ae_infer` (a venv with torch and
+//! train_ae as for the `ae_bridge` test; `OMP_NUM_THREADS=1` on a loaded machine, where two
+//! OpenMP threads on two busy cores make batch-1 times erratic). Criterion reports the time per
+//! call; divide by the batch size.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use lgdm_pybridge::ae::{self, AutoEncoder};
+use numpy::IntoPyArray;
+use numpy::ndarray::Array4;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -37,6 +42,14 @@ save_checkpoint(path, GraspAutoencoder(ModelConfig.preset('cpu')), {})",
 fn bench(c: &mut Criterion) {
     let ckpt = checkpoint();
     let model = AutoEncoder::load(&ckpt).unwrap_or_else(|e| panic!("{e}"));
+    // The same checkpoint loaded on the Python side, for the no-copy baseline.
+    let (bridge, py_model) = Python::attach(|py| {
+        let bridge = py.import("train_ae.bridge").unwrap();
+        let m = bridge
+            .call_method1("load", (ckpt.to_string_lossy().into_owned(),))
+            .unwrap();
+        (bridge.unbind(), m.unbind())
+    });
     std::fs::remove_file(&ckpt).ok();
     let s = model.input_size();
     let mut group = c.benchmark_group("ae_cpu");
@@ -49,6 +62,15 @@ fn bench(c: &mut Criterion) {
         group.throughput(Throughput::Elements(n as u64));
         group.bench_with_input(BenchmarkId::new("infer", n), &n, |b, &n| {
             b.iter(|| model.infer(&x, n, s, s).unwrap())
+        });
+        Python::attach(|py| {
+            let arr = Array4::from_shape_vec((n, 4, s, s), x.clone())
+                .unwrap()
+                .into_pyarray(py);
+            let (bridge, m) = (bridge.bind(py), py_model.bind(py));
+            group.bench_with_input(BenchmarkId::new("python_call", n), &n, |b, _| {
+                b.iter(|| bridge.call_method1("infer", (m, &arr)).unwrap())
+            });
         });
     }
     let rgb: Vec<u8> = (0..s * s * 3).map(|i| (i * 7 % 251) as u8).collect();
