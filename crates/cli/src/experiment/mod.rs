@@ -130,17 +130,18 @@ pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
         s.epochs,
         &mut rng,
     );
-    if s.scenario == Scenario::Batch && s.train_samples > 0 {
-        if let Some(first) = plan.steps.first() {
-            let keep = stratified_subset(
-                &first.sequences,
-                s.train_samples,
-                |q| data.table.category[q[0]],
-                s.seed ^ 0x7472_6169_6e5f_7375,
-            );
-            for step in &mut plan.steps {
-                step.sequences.retain(|q| keep.contains(&q[0]));
-            }
+    if s.scenario == Scenario::Batch
+        && s.train_samples > 0
+        && let Some(first) = plan.steps.first()
+    {
+        let keep = stratified_subset(
+            &first.sequences,
+            s.train_samples,
+            |q| data.table.category[q[0]],
+            s.seed ^ 0x7472_6169_6e5f_7375,
+        );
+        for step in &mut plan.steps {
+            step.sequences.retain(|q| keep.contains(&q[0]));
         }
     }
     plan
