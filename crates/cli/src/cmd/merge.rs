@@ -3,9 +3,9 @@
 //! Trial t of `lgdm train --trials N --seed S` uses seed S + t, so a 5-trial experiment can be
 //! run as five `--trials 1 --seed k` runs (in parallel, on several machines, or across sessions)
 //! and merged afterwards: the merged `metrics.json`, summary table and plots are those of the
-//! 5-trial run. Runs are only merged when they are the same experiment: scenario, encoder,
-//! dataset, replay, epochs, evaluation settings and every hyperparameter (the seed aside) must
-//! agree, and no seed may appear twice. Everything is checked before anything is written.
+//! 5-trial run. Runs are only merged when they are the same experiment: scenario, encoder (for
+//! `--encoder ae`, the checkpoint's bytes), dataset, replay, epochs, evaluation settings and
+//! every hyperparameter (the seed aside) must agree, and no seed may appear twice. Everything is checked before anything is written.
 
 use std::path::{Path, PathBuf};
 
@@ -87,6 +87,12 @@ fn difference(a: &Run, b: &Run) -> Option<String> {
     same!("eval_samples", ca.eval_samples, cb.eval_samples);
     same!("train_samples", ca.train_samples, cb.train_samples);
     same!("validate", ca.validate, cb.validate);
+    // The checkpoint's bytes, not its path: a copy elsewhere is the same encoder.
+    same!(
+        "autoencoder checkpoint (FNV-1a)",
+        ca.ae_checkpoint_fnv1a,
+        cb.ae_checkpoint_fnv1a
+    );
     let mut ga = ca.gdm.clone();
     let mut gb = cb.gdm.clone();
     ga.seed = 0;
@@ -282,6 +288,8 @@ mod tests {
             train_samples: 0,
             validate: false,
             hyperparameters_from: "preset".into(),
+            ae_checkpoint: None,
+            ae_checkpoint_fnv1a: None,
             gdm: lgdm_gdm::GdmConfig {
                 seed: seeds[0],
                 ..Default::default()
@@ -322,5 +330,42 @@ mod tests {
         other.config.gdm.episodic.activation_threshold = 0.9;
         let e = err(&[run("a", &[0], true), other]);
         assert!(e.to_string().contains("hyperparameters"), "{e}");
+    }
+
+    fn ae_run(dir: &str, seed: u64, path: &str, hash: &str) -> Run {
+        let mut r = run(dir, &[seed], true);
+        r.metrics.encoder = "ae".into();
+        r.config.encoder = "ae".into();
+        r.config.ae_checkpoint = Some(path.into());
+        r.config.ae_checkpoint_fnv1a = Some(hash.into());
+        r
+    }
+
+    #[test]
+    fn autoencoder_runs_merge_only_with_the_same_checkpoint_bytes() {
+        let e = merge(&[
+            ae_run("a", 0, "/x/cpu.pt", "00000000000000aa"),
+            ae_run("b", 1, "/x/cpu.pt", "00000000000000bb"),
+        ])
+        .err()
+        .expect("refused")
+        .to_string();
+        assert!(e.contains("checkpoint"), "{e}");
+        // Same bytes under another path merge, and the merged config keeps the checkpoint.
+        let m = merge(&[
+            ae_run("a", 0, "/x/cpu.pt", "00000000000000aa"),
+            ae_run("b", 1, "/y/copy.pt", "00000000000000aa"),
+        ])
+        .unwrap();
+        assert_eq!(m.config.ae_checkpoint.as_deref(), Some("/x/cpu.pt"));
+        assert_eq!(
+            m.config.ae_checkpoint_fnv1a.as_deref(),
+            Some("00000000000000aa")
+        );
+        let text = toml::to_string_pretty(&m.config).unwrap();
+        assert!(
+            text.contains("ae_checkpoint_fnv1a = \"00000000000000aa\""),
+            "{text}"
+        );
     }
 }

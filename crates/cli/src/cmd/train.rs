@@ -112,20 +112,14 @@ pub struct RunConfig {
     pub validate: bool,
     /// Where the hyperparameters came from.
     pub hyperparameters_from: String,
+    /// `--encoder ae`: the checkpoint's path (absent for GOOD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ae_checkpoint: Option<String>,
+    /// `--encoder ae`: FNV-1a hash of the checkpoint's bytes, 16 hex digits (absent for GOOD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ae_checkpoint_fnv1a: Option<String>,
     /// The dual memory's hyperparameters.
     pub gdm: GdmConfig,
-}
-
-/// `config.toml` as written: the run's settings and, for `--encoder ae`, the checkpoint (path
-/// and FNV-1a hash of its bytes).
-#[derive(Serialize)]
-struct RunConfigFile<'a> {
-    #[serde(flatten)]
-    run: &'a RunConfig,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    ae_checkpoint: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    ae_checkpoint_fnv1a: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -280,19 +274,16 @@ pub fn run(args: Args) -> Result<()> {
         train_samples: args.train_samples,
         validate: args.validate,
         hyperparameters_from: from,
-        gdm: config,
-    };
-    let config_file = RunConfigFile {
-        run: &run_config,
         ae_checkpoint: source.ae_checkpoint().map(|p| p.display().to_string()),
         ae_checkpoint_fnv1a: source
             .ae_checkpoint()
             .map(|p| data::file_hash(p).map(|h| format!("{h:016x}")))
             .transpose()?,
+        gdm: config,
     };
     write_atomic(
         &out.join("config.toml"),
-        toml::to_string_pretty(&config_file)?.as_bytes(),
+        toml::to_string_pretty(&run_config)?.as_bytes(),
     )?;
 
     reporter.message(&format!(
