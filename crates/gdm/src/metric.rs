@@ -219,6 +219,9 @@ pub(crate) struct NodeBuffer<'a> {
     /// n × [`prefix_len`]`(dim)` floats: the first input-weight floats of every node, contiguous
     /// (a copy of `weights`), so that the first early-abandon check streams through memory.
     pub prefix: &'a [f32],
+    /// n × [`summary_len`]`(dim, depth)` floats: every node's [`summarise`] (Manhattan's lower
+    /// bound), contiguous.
+    pub summary: &'a [f32],
     /// Input dimension D.
     pub dim: usize,
     /// Blocks per node (K + 1).
@@ -298,6 +301,64 @@ const CHECK: usize = 64;
 /// Length of the per-node prefix copy kept for the search: the first check's span.
 pub(crate) const fn prefix_len(dim: usize) -> usize {
     if dim < CHECK { dim } else { CHECK }
+}
+
+/// Inputs per segment of the summaries behind Manhattan's lower bound.
+const SEGMENT: usize = 16;
+
+/// Floats per block of a summary: one sum per segment of [`SEGMENT`] inputs, then Σ|w|.
+const fn summary_block(dim: usize) -> usize {
+    dim.div_ceil(SEGMENT) + 1
+}
+
+/// Length of a node's summary ([`summarise`]) over `depth` blocks.
+pub(crate) const fn summary_len(dim: usize, depth: usize) -> usize {
+    depth * summary_block(dim)
+}
+
+/// Writes the summary of `blocks` (a whole number of `dim`-float blocks) into `out`: per block,
+/// the sum of every segment of [`SEGMENT`] inputs, then the block's L1 norm. For any two
+/// vectors, Σ_segments |Σ q − Σ w| ≤ Σ |q − w| (triangle inequality), so two summaries give a
+/// lower bound of the Manhattan distance from a few dozen floats instead of D.
+pub(crate) fn summarise(blocks: &[f32], dim: usize, out: &mut [f32]) {
+    let sb = summary_block(dim);
+    for (block, out) in blocks.chunks_exact(dim).zip(out.chunks_exact_mut(sb)) {
+        for (segment, o) in block.chunks(SEGMENT).zip(out.iter_mut()) {
+            *o = segment.iter().sum();
+        }
+        out[sb - 1] = block.iter().map(|v| v.abs()).sum();
+    }
+}
+
+/// True if the node with summary `node` is certainly farther than `bound` from the query with
+/// summary `query` (Manhattan, blocks weighted by `alphas`), as [`bounded_distance`] computes
+/// it. The lower bound is discounted by a bound on its own rounding error (segment sums: at
+/// most SEGMENT·ε·Σ|v| each) and compared against `bound` inflated by the distance's rounding
+/// error (at most (blocks·D + 4)·ε relative, all terms being non-negative), so a node is never
+/// skipped that the exact scan would rank: results do not change, only the work.
+#[inline(always)]
+fn l1_bound_excludes(query: &[f32], node: &[f32], dim: usize, alphas: &[f32], bound: f32) -> bool {
+    if !bound.is_finite() {
+        return false;
+    }
+    let sb = summary_block(dim);
+    // f32::EPSILON is twice the unit roundoff: a factor-2 margin on both error bounds.
+    let eps = f32::EPSILON;
+    let shrink = 1.0 - eps * (alphas.len() * dim + 4) as f32;
+    let (mut lb, mut magnitude) = (0.0f32, 0.0f32);
+    for (k, &alpha) in alphas.iter().enumerate() {
+        let q = &query[k * sb..(k + 1) * sb];
+        let w = &node[k * sb..(k + 1) * sb];
+        lb += alpha * sum_l1(&q[..sb - 1], &w[..sb - 1]);
+        magnitude += alpha * (q[sb - 1] + w[sb - 1]);
+        // The first blocks alone already bound the distance from below (the others add
+        // non-negative terms), with an error term of their own: stop once that suffices.
+        let error = eps * (SEGMENT as f32 * magnitude + (sb as f32 + 2.0) * lb);
+        if (lb - error) * shrink > bound {
+            return true;
+        }
+    }
+    false
 }
 
 /// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index.
@@ -400,6 +461,7 @@ fn search_monotone<A: Accumulator>(
     alphas: &[f32],
     want_second: bool,
     seeds: &[usize],
+    query_summary: Option<&[f32]>,
 ) -> Option<Matches> {
     let dim = buf.dim;
     let stride = buf.depth * dim;
@@ -409,6 +471,8 @@ fn search_monotone<A: Accumulator>(
     }
     let p = prefix_len(dim);
     debug_assert_eq!(buf.prefix.len(), n * p);
+    let sl = summary_len(dim, buf.depth);
+    debug_assert!(query_summary.is_none() || buf.summary.len() == n * sl);
     let mut rank = Ranking::new(want_second);
     // Likely winners first: a tight bound early makes the scan abandon most nodes quickly.
     // The ranking is by (distance, index), so the visiting order cannot change the result.
@@ -425,6 +489,12 @@ fn search_monotone<A: Accumulator>(
     for j in 0..n {
         if rank.seen(j) {
             continue;
+        }
+        if let Some(qs) = query_summary {
+            let ns = &buf.summary[j * sl..(j + 1) * sl];
+            if l1_bound_excludes(qs, ns, dim, alphas, rank.bound()) {
+                continue;
+            }
         }
         let node = &buf.weights[j * stride..(j + 1) * stride];
         let prefix = &buf.prefix[j * p..(j + 1) * p];
@@ -479,11 +549,16 @@ pub(crate) fn search(
     debug_assert!(query.len() >= alphas.len() * buf.dim);
     let w = want_second;
     match metric {
-        Metric::Manhattan => search_monotone(&L1, buf, query, alphas, w, seeds),
-        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, w, seeds),
-        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, w, seeds),
-        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, w, seeds),
-        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, w, seeds),
+        Metric::Manhattan => {
+            let blocks = alphas.len();
+            let mut qs = vec![0.0; summary_len(buf.dim, blocks)];
+            summarise(&query[..blocks * buf.dim], buf.dim, &mut qs);
+            search_monotone(&L1, buf, query, alphas, w, seeds, Some(&qs))
+        }
+        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, w, seeds, None),
+        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, w, seeds, None),
+        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, w, seeds, None),
+        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, w, seeds, None),
         Metric::Cosine => search_cosine(buf, query, alphas, w),
     }
 }
@@ -654,8 +729,14 @@ mod tests {
             .chunks(depth * dim)
             .flat_map(|node| node[..p].to_vec())
             .collect();
+        let sl = summary_len(dim, depth);
+        let mut summary = vec![0.0; n * sl];
+        for (node, out) in weights.chunks(depth * dim).zip(summary.chunks_mut(sl)) {
+            summarise(node, dim, out);
+        }
         let buf = NodeBuffer {
             prefix: &prefix,
+            summary: &summary,
             weights: &weights,
             dim,
             depth,
@@ -689,5 +770,47 @@ mod tests {
                 assert!(one.second.is_none());
             }
         }
+    }
+
+    #[test]
+    fn manhattan_lower_bound_never_excludes_a_node_within_the_bound() {
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+        };
+        let alphas = [0.665f32, 0.245, 0.090];
+        let mut excluded = 0;
+        for (dim, scale) in [(675usize, 1.0f32), (256, 1000.0), (5, 0.001), (17, 1.0)] {
+            let sl = summary_len(dim, alphas.len());
+            for trial in 0..200 {
+                let q: Vec<f32> = (0..3 * dim).map(|_| scale * next()).collect();
+                // Near copies (the hard case for rounding), unrelated vectors, and shifted
+                // copies (whose segment sums carry the whole distance).
+                let w: Vec<f32> = match trial % 3 {
+                    0 => q.iter().map(|v| v + scale * 1e-4 * next()).collect(),
+                    1 => (0..3 * dim).map(|_| scale * next()).collect(),
+                    _ => q.iter().map(|v| v + 0.25 * scale).collect(),
+                };
+                let (mut qs, mut ws) = (vec![0.0; sl], vec![0.0; sl]);
+                summarise(&q, dim, &mut qs);
+                summarise(&w, dim, &mut ws);
+                let p = prefix_len(dim);
+                let d =
+                    bounded_distance(&L1, &w, &w[..p], &q, dim, &alphas, f32::INFINITY).unwrap();
+                assert!(
+                    !l1_bound_excludes(&qs, &ws, dim, &alphas, d),
+                    "{dim} {trial}"
+                );
+                assert!(!l1_bound_excludes(&qs, &ws, dim, &alphas, f32::INFINITY));
+                if trial % 3 == 2 && l1_bound_excludes(&qs, &ws, dim, &alphas, 0.5 * d) {
+                    excluded += 1;
+                }
+            }
+        }
+        // The bound is useful: shifted copies are excluded at half their distance.
+        assert_eq!(excluded, 4 * 66);
     }
 }

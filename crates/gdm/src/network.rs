@@ -134,6 +134,9 @@ pub(crate) struct ContextState {
     pub prev_node: Option<u32>,
     /// Speed hint only (not saved, not compared): the previous step's best node.
     pub prev_best: Option<u32>,
+    /// Speed hint only (not saved, not compared), used by the next training step and then
+    /// cleared: a node the caller expects near the best match.
+    pub hint: Option<u32>,
     /// Scratch: nodes the search tries first.
     pub seeds: Vec<usize>,
 }
@@ -152,6 +155,7 @@ impl ContextState {
             global: vec![0.0; dim * depth],
             prev_node: None,
             prev_best: None,
+            hint: None,
             seeds: Vec::new(),
         }
     }
@@ -161,6 +165,7 @@ impl ContextState {
         self.prev_block.fill(0.0);
         self.prev_node = None;
         self.prev_best = None;
+        self.hint = None;
     }
 
     /// C_0 = x; C_k = β·c_{b,k}(t−1) + (1−β)·c_{b,k−1}(t−1), with c_{b,0} ≡ w_b.
@@ -190,6 +195,9 @@ pub struct GammaGwr {
     /// Search cache: each node's first `prefix_len(dim)` weight floats, contiguous. Derived
     /// from `weights` (kept in sync by every change; not saved).
     pub(crate) prefix: Vec<f32>,
+    /// Search cache: each node's `summary_len(dim, depth)` floats (segment sums and block
+    /// norms, for Manhattan's lower bound), contiguous. Derived from `weights` like `prefix`.
+    pub(crate) summary: Vec<f32>,
     pub(crate) habituation: Vec<f32>,
     pub(crate) edges: Vec<Vec<Edge>>,
     pub(crate) synapses: Vec<Vec<(u32, u32)>>,
@@ -239,6 +247,7 @@ impl GammaGwr {
             depth,
             weights: Vec::new(),
             prefix: Vec::new(),
+            summary: Vec::new(),
             habituation: Vec::new(),
             edges: Vec::new(),
             synapses: Vec::new(),
@@ -381,6 +390,7 @@ impl GammaGwr {
         NodeBuffer {
             weights: &self.weights,
             prefix: &self.prefix,
+            summary: &self.summary,
             dim: self.dim,
             depth: self.depth,
         }
@@ -388,7 +398,7 @@ impl GammaGwr {
 
     /// Fills `seeds` with the nodes likely to match next: the previous best and representing
     /// nodes, their neighbours and their strongest temporal successors.
-    fn fill_seeds(&self, prev: [Option<u32>; 2], seeds: &mut Vec<usize>) {
+    fn fill_seeds(&self, prev: [Option<u32>; 3], seeds: &mut Vec<usize>) {
         seeds.clear();
         for p in prev.into_iter().flatten() {
             let p = p as usize;
@@ -401,6 +411,12 @@ impl GammaGwr {
             }
             seeds.extend(self.edges[p].iter().map(|e| e.to as usize));
         }
+    }
+
+    /// A speed hint for the next training step only: node `j` (with its neighbours and
+    /// successor) is tried first by the search. The step's result does not depend on it.
+    pub(crate) fn hint_next(&mut self, j: usize) {
+        self.train_ctx.hint = Some(j as u32);
     }
 
     /// Starts a new training sequence: contexts reset to zero, no temporal synapse from the
@@ -467,8 +483,9 @@ impl GammaGwr {
             };
         }
         let mut seeds = std::mem::take(&mut self.train_ctx.seeds);
+        let hint = self.train_ctx.hint.take();
         self.fill_seeds(
-            [self.train_ctx.prev_best, self.train_ctx.prev_node],
+            [hint, self.train_ctx.prev_best, self.train_ctx.prev_node],
             &mut seeds,
         );
         let Matches { best, second } = metric::search(
@@ -637,25 +654,40 @@ impl GammaGwr {
         r
     }
 
-    /// Copies node `j`'s first weights into the search prefix.
+    /// Refreshes node `j`'s search caches (prefix copy and summary) from its weights.
     fn sync_prefix(&mut self, j: usize) {
         let (p, s) = (metric::prefix_len(self.dim), self.stride());
-        self.prefix[j * p..(j + 1) * p].copy_from_slice(&self.weights[j * s..j * s + p]);
+        let sl = metric::summary_len(self.dim, self.depth);
+        let node = &self.weights[j * s..(j + 1) * s];
+        self.prefix[j * p..(j + 1) * p].copy_from_slice(&node[..p]);
+        metric::summarise(node, self.dim, &mut self.summary[j * sl..(j + 1) * sl]);
     }
 
-    /// Recomputes the search prefix of every node from `weights`.
+    /// Recomputes the search caches (prefix copies and summaries) of every node from `weights`.
     pub(crate) fn rebuild_prefix(&mut self) {
         let (p, s) = (metric::prefix_len(self.dim), self.stride());
+        let sl = metric::summary_len(self.dim, self.depth);
         self.prefix.clear();
         for node in self.weights.chunks_exact(s) {
             self.prefix.extend_from_slice(&node[..p]);
+        }
+        self.summary.clear();
+        self.summary.resize(self.weights.len() / s * sl, 0.0);
+        for (node, out) in self
+            .weights
+            .chunks_exact(s)
+            .zip(self.summary.chunks_exact_mut(sl))
+        {
+            metric::summarise(node, self.dim, out);
         }
     }
 
     /// Completes a node whose block was just appended to `weights`.
     fn finish_push(&mut self, labels: &[Option<u32>]) {
         let (p, r) = (metric::prefix_len(self.dim), self.habituation.len());
+        let sl = metric::summary_len(self.dim, self.depth);
         self.prefix.resize((r + 1) * p, 0.0);
+        self.summary.resize((r + 1) * sl, 0.0);
         self.sync_prefix(r);
         self.habituation.push(1.0);
         self.edges.push(Vec::new());
@@ -709,7 +741,7 @@ impl GammaGwr {
         no_context: bool,
     ) -> Option<(usize, f32)> {
         let mut seeds = std::mem::take(&mut ctx.seeds);
-        self.fill_seeds([ctx.prev_best, None], &mut seeds);
+        self.fill_seeds([ctx.prev_best, None, None], &mut seeds);
         let found = if no_context {
             metric::search(
                 self.metric,
@@ -862,6 +894,16 @@ impl GammaGwr {
             });
         if !prefix_ok {
             return Err("search prefix out of sync with the weights".into());
+        }
+        let sl = metric::summary_len(self.dim, self.depth);
+        let mut fresh = vec![0.0; sl];
+        let summary_ok = self.summary.len() == n * sl
+            && (0..n).all(|j| {
+                metric::summarise(self.node_block(j), self.dim, &mut fresh);
+                self.summary[j * sl..(j + 1) * sl] == fresh[..]
+            });
+        if !summary_ok {
+            return Err("search summary out of sync with the weights".into());
         }
         if let Some(j) = self.weights.iter().position(|w| !w.is_finite()) {
             return Err(format!("non-finite weight at float {j}"));

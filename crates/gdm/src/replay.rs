@@ -84,14 +84,21 @@ impl Gdm {
         let mut weights = Vec::with_capacity(total * dim);
         let mut labels = Vec::with_capacity(total);
         let mut spans = Vec::with_capacity(chains.len());
+        let mut sources = Vec::with_capacity(total);
         for chain in &chains {
             let start = labels.len();
             for &j in chain {
                 weights.extend_from_slice(em.weight(j));
                 labels.push((em.label(INSTANCE_LEVEL, j), em.label(CATEGORY_LEVEL, j)));
+                sources.push(j);
             }
             spans.push(start..labels.len());
         }
+        // Speed hints only (results do not depend on them): a pseudo-sample is tried first
+        // against the episodic node it came from, and against the semantic node that matched
+        // the same episodic node earlier in this replay. Replay removes no nodes, so the
+        // indices stay valid.
+        let mut semantic_hint: Vec<Option<usize>> = vec![None; em.len()];
         if self.config.replay.shuffle {
             let seed = mix(self.config.seed ^ mix(self.replays));
             spans.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
@@ -101,8 +108,15 @@ impl Gdm {
             for t in span.clone() {
                 let x = &weights[t * dim..(t + 1) * dim];
                 let (instance, category) = labels[t];
+                let source = sources[t];
+                self.episodic.net.hint_next(source);
                 self.episodic.train_step(x, instance, category);
-                self.semantic.train_step(x, category);
+                if let Some(h) = semantic_hint[source] {
+                    self.semantic.net.hint_next(h);
+                }
+                if let Some((b, _)) = self.semantic.train_step(x, category).best {
+                    semantic_hint[source] = Some(b);
+                }
             }
         }
         self.begin_sequence();
