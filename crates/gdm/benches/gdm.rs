@@ -5,6 +5,9 @@
 //! threshold (a_T = 0.999, h_T = 1); once capped, every training step is a pure update (search,
 //! habituation, weight, edge, neighbour, label and synapse updates), which is what is measured.
 //!
+//! `replay_clustered` times one intrinsic replay of the 1k-node dual model (throughput in
+//! replayed pseudo-samples).
+//!
 //! Data: "clustered" = 50 objects, each a 20-view sequence drifting around its own random centre
 //! (like a turntable stream); "uniform" = i.i.d. uniform vectors, the worst case for the
 //! early-abandoning search because all distances are alike.
@@ -14,7 +17,7 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use lgdm_gdm::{GammaGwr, Gdm, GdmConfig, Metric, PredictOptions, Sample, Supervision};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -189,6 +192,21 @@ fn bench(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("train_dual_clustered", nodes), |b| {
             b.iter(|| black_box(gdm.train(batch).unwrap()))
         });
+        if nodes == 1000 {
+            // One intrinsic replay of the whole G-EM (RNATs of K + 1 = 3 nodes into both
+            // memories), on a copy of the model each time.
+            let stats = gdm.clone().replay().unwrap();
+            group.throughput(Throughput::Elements(stats.samples as u64));
+            group.sample_size(10);
+            group.bench_function(BenchmarkId::new("replay_clustered", nodes), |b| {
+                b.iter_batched(
+                    || gdm.clone(),
+                    |mut g| black_box(g.replay().unwrap()),
+                    BatchSize::LargeInput,
+                )
+            });
+            group.sample_size(20);
+        }
     }
 
     let nodes = 5000;
