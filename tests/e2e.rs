@@ -4,31 +4,14 @@
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-fn lgdm(cache: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lgdm"));
-    c.env("LGDM_CACHE_DIR", cache);
-    c
-}
+#[path = "common/mod.rs"]
+mod common;
+use common::{check, lgdm};
 
 fn work_dir() -> PathBuf {
-    let dir =
-        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn check(out: Output, what: &str) -> Output {
-    assert!(
-        out.status.success(),
-        "{what} failed ({}):\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+    common::work_dir("e2e")
 }
 
 /// A tiny dataset (small preset, 4 frames per sequence), generated once per test binary.

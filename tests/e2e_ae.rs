@@ -11,28 +11,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
+#[path = "common/mod.rs"]
+mod common;
+use common::{check, lgdm};
+
 fn work_dir() -> PathBuf {
-    let dir =
-        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("e2e-ae-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn lgdm(cache: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lgdm"));
-    c.env("LGDM_CACHE_DIR", cache);
-    c
-}
-
-fn check(out: Output, what: &str) -> Output {
-    assert!(
-        out.status.success(),
-        "{what} failed ({}):\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+    common::work_dir("e2e-ae")
 }
 
 /// The venv the binary's embedded Python uses (same search as `lgdm_pybridge::ae::venv_dir`).

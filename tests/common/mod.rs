@@ -1,0 +1,33 @@
+//! Helpers shared by the end-to-end tests that drive the real `lgdm` binary (`e2e`, `e2e_ae`).
+//! Each test binary includes this file with `#[path]` and uses what it needs.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The `lgdm` binary under test, with its feature cache in `cache`.
+pub fn lgdm(cache: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_lgdm"));
+    c.env("LGDM_CACHE_DIR", cache);
+    c
+}
+
+/// A scratch directory for this test binary: `<cargo tmp>/<tag>-<pid>`, created.
+pub fn work_dir(tag: &str) -> PathBuf {
+    let dir =
+        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Panics, showing both streams, unless the command succeeded.
+pub fn check(out: Output, what: &str) -> Output {
+    assert!(
+        out.status.success(),
+        "{what} failed ({}):\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
