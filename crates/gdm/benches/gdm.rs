@@ -5,8 +5,9 @@
 //! threshold (a_T = 0.999, h_T = 1); once capped, every training step is a pure update (search,
 //! habituation, weight, edge, neighbour, label and synapse updates), which is what is measured.
 //!
-//! `replay_clustered` times one intrinsic replay of the 1k-node dual model (throughput in
-//! replayed pseudo-samples).
+//! `replay_clustered` and `replay_histograms` time one intrinsic replay of a 1k-node dual model
+//! (throughput in replayed pseudo-samples); "histograms" = GOOD-like views (D = 675: three
+//! 15 × 15 projections of drifting Gaussian blobs, each summing to 1).
 //!
 //! Data: "clustered" = 50 objects, each a 20-view sequence drifting around its own random centre
 //! (like a turntable stream); "uniform" = i.i.d. uniform vectors, the worst case for the
@@ -85,6 +86,57 @@ fn clustered(n: usize, seed: u64) -> Data {
     d
 }
 
+/// GOOD-like views: 3 projections of 15 × 15 bins (D = 675), each a sum of 3 Gaussian blobs
+/// normalised to sum 1; an object's blobs drift along its 20-view sequence. Non-negative,
+/// smooth histograms, like the embedded default features.
+fn histograms(n: usize, seed: u64) -> Data {
+    const BINS: usize = 15;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    // Per object and projection: 3 blobs (centre x, centre y, spread, drift x, drift y).
+    let objects: Vec<Vec<[f32; 5]>> = (0..50)
+        .map(|_| {
+            (0..9)
+                .map(|_| {
+                    [
+                        rng.random::<f32>() * BINS as f32,
+                        rng.random::<f32>() * BINS as f32,
+                        1.0 + 2.0 * rng.random::<f32>(),
+                        2.0 * rng.random::<f32>() - 1.0,
+                        2.0 * rng.random::<f32>() - 1.0,
+                    ]
+                })
+                .collect()
+        })
+        .collect();
+    let mut d = Data {
+        xs: Vec::with_capacity(n),
+        sequence: Vec::with_capacity(n),
+        label: Vec::with_capacity(n),
+    };
+    for i in 0..n {
+        let seq = i / VIEWS;
+        let o = (seq * 7919) % 50;
+        let t = (i % VIEWS) as f32 / VIEWS as f32;
+        let mut x = vec![0.0f32; 3 * BINS * BINS];
+        for (proj, out) in x.chunks_mut(BINS * BINS).enumerate() {
+            for blob in &objects[o][3 * proj..3 * proj + 3] {
+                let (cx, cy) = (blob[0] + t * blob[3], blob[1] + t * blob[4]);
+                for (k, v) in out.iter_mut().enumerate() {
+                    let (bx, by) = ((k % BINS) as f32 + 0.5, (k / BINS) as f32 + 0.5);
+                    let r2 = (bx - cx).powi(2) + (by - cy).powi(2);
+                    *v += (-0.5 * r2 / (blob[2] * blob[2])).exp();
+                }
+            }
+            let total: f32 = out.iter().sum();
+            out.iter_mut().for_each(|v| *v /= total);
+        }
+        d.xs.push(x);
+        d.sequence.push(seq as u64);
+        d.label.push(o as u32);
+    }
+    d
+}
+
 fn uniform(n: usize, seed: u64) -> Data {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Data {
@@ -109,7 +161,7 @@ fn growth_config(nodes: usize) -> GdmConfig {
 
 /// A dual model whose memories are grown to (at most) `nodes` nodes each.
 fn grown_gdm(nodes: usize, data: &Data) -> Gdm {
-    let mut gdm = Gdm::new(growth_config(nodes), DIM).unwrap();
+    let mut gdm = Gdm::new(growth_config(nodes), data.xs[0].len()).unwrap();
     let samples = data.samples();
     for _ in 0..4 {
         gdm.train(&samples).unwrap();
@@ -208,6 +260,26 @@ fn bench(c: &mut Criterion) {
             group.sample_size(20);
         }
     }
+
+    // Replay on GOOD-like histograms, where Manhattan's segment-sum bound prunes most nodes.
+    let nodes = 1000;
+    let gdm = grown_gdm(nodes, &histograms(2 * nodes + 200, 5));
+    eprintln!(
+        "dual model (histograms, D = 675): {} episodic / {} semantic nodes",
+        gdm.episodic().len(),
+        gdm.semantic().len()
+    );
+    let stats = gdm.clone().replay().unwrap();
+    group.throughput(Throughput::Elements(stats.samples as u64));
+    group.sample_size(10);
+    group.bench_function(BenchmarkId::new("replay_histograms", nodes), |b| {
+        b.iter_batched(
+            || gdm.clone(),
+            |mut g| black_box(g.replay().unwrap()),
+            BatchSize::LargeInput,
+        )
+    });
+    group.sample_size(20);
 
     let nodes = 5000;
     let data = uniform(2 * nodes + 200, 3);
