@@ -18,7 +18,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BatchSize, BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
+};
 use lgdm_gdm::{GammaGwr, Gdm, GdmConfig, Metric, PredictOptions, Sample, Supervision};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -66,6 +69,16 @@ fn clustered(n: usize, seed: u64) -> Data {
     let drifts: Vec<Vec<f32>> = (0..50)
         .map(|_| (0..DIM).map(|_| 0.3 * unit.sample(&mut rng)).collect())
         .collect();
+    turntable(n, |o, t| {
+        (0..DIM)
+            .map(|k| centres[o][k] + t * drifts[o][k] + 0.1 * unit.sample(&mut rng))
+            .collect()
+    })
+}
+
+/// `n` views in sequences of [`VIEWS`], cycling over 50 objects: `view(object, t)` with t the
+/// position in the sequence, 0 ≤ t < 1. Labels are the objects.
+fn turntable(n: usize, mut view: impl FnMut(usize, f32) -> Vec<f32>) -> Data {
     let mut d = Data {
         xs: Vec::with_capacity(n),
         sequence: Vec::with_capacity(n),
@@ -74,12 +87,7 @@ fn clustered(n: usize, seed: u64) -> Data {
     for i in 0..n {
         let seq = i / VIEWS;
         let o = (seq * 7919) % 50;
-        let t = (i % VIEWS) as f32 / VIEWS as f32;
-        d.xs.push(
-            (0..DIM)
-                .map(|k| centres[o][k] + t * drifts[o][k] + 0.1 * unit.sample(&mut rng))
-                .collect(),
-        );
+        d.xs.push(view(o, (i % VIEWS) as f32 / VIEWS as f32));
         d.sequence.push(seq as u64);
         d.label.push(o as u32);
     }
@@ -108,15 +116,7 @@ fn histograms(n: usize, seed: u64) -> Data {
                 .collect()
         })
         .collect();
-    let mut d = Data {
-        xs: Vec::with_capacity(n),
-        sequence: Vec::with_capacity(n),
-        label: Vec::with_capacity(n),
-    };
-    for i in 0..n {
-        let seq = i / VIEWS;
-        let o = (seq * 7919) % 50;
-        let t = (i % VIEWS) as f32 / VIEWS as f32;
+    turntable(n, |o, t| {
         let mut x = vec![0.0f32; 3 * BINS * BINS];
         for (proj, out) in x.chunks_mut(BINS * BINS).enumerate() {
             for blob in &objects[o][3 * proj..3 * proj + 3] {
@@ -130,11 +130,8 @@ fn histograms(n: usize, seed: u64) -> Data {
             let total: f32 = out.iter().sum();
             out.iter_mut().for_each(|v| *v /= total);
         }
-        d.xs.push(x);
-        d.sequence.push(seq as u64);
-        d.label.push(o as u32);
-    }
-    d
+        x
+    })
 }
 
 fn uniform(n: usize, seed: u64) -> Data {
@@ -188,6 +185,22 @@ fn grown_episodic(nodes: usize, data: &Data) -> GammaGwr {
         }
     }
     net
+}
+
+/// One intrinsic replay of the whole G-EM (RNATs of K + 1 = 3 nodes into both memories), on a
+/// copy of `gdm` each time; throughput in replayed pseudo-samples.
+fn bench_replay(group: &mut BenchmarkGroup<'_, WallTime>, name: &str, nodes: usize, gdm: &Gdm) {
+    let stats = gdm.clone().replay().unwrap();
+    group.throughput(Throughput::Elements(stats.samples as u64));
+    group.sample_size(10);
+    group.bench_function(BenchmarkId::new(name, nodes), |b| {
+        b.iter_batched(
+            || gdm.clone(),
+            |mut g| black_box(g.replay().unwrap()),
+            BatchSize::LargeInput,
+        )
+    });
+    group.sample_size(20);
 }
 
 fn bench(c: &mut Criterion) {
@@ -245,19 +258,7 @@ fn bench(c: &mut Criterion) {
             b.iter(|| black_box(gdm.train(batch).unwrap()))
         });
         if nodes == 1000 {
-            // One intrinsic replay of the whole G-EM (RNATs of K + 1 = 3 nodes into both
-            // memories), on a copy of the model each time.
-            let stats = gdm.clone().replay().unwrap();
-            group.throughput(Throughput::Elements(stats.samples as u64));
-            group.sample_size(10);
-            group.bench_function(BenchmarkId::new("replay_clustered", nodes), |b| {
-                b.iter_batched(
-                    || gdm.clone(),
-                    |mut g| black_box(g.replay().unwrap()),
-                    BatchSize::LargeInput,
-                )
-            });
-            group.sample_size(20);
+            bench_replay(&mut group, "replay_clustered", nodes, &gdm);
         }
     }
 
@@ -269,17 +270,7 @@ fn bench(c: &mut Criterion) {
         gdm.episodic().len(),
         gdm.semantic().len()
     );
-    let stats = gdm.clone().replay().unwrap();
-    group.throughput(Throughput::Elements(stats.samples as u64));
-    group.sample_size(10);
-    group.bench_function(BenchmarkId::new("replay_histograms", nodes), |b| {
-        b.iter_batched(
-            || gdm.clone(),
-            |mut g| black_box(g.replay().unwrap()),
-            BatchSize::LargeInput,
-        )
-    });
-    group.sample_size(20);
+    bench_replay(&mut group, "replay_histograms", nodes, &gdm);
 
     let nodes = 5000;
     let data = uniform(2 * nodes + 200, 3);
