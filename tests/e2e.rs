@@ -122,7 +122,8 @@ fn first_difference(a: &Value, b: &Value, path: &str) -> Option<String> {
 
 fn run_scenario(scenario: &str, extra: &[&str]) {
     let base = work_dir().join(format!("run-{scenario}{}", extra.join("")));
-    let a = train(scenario, &base.join("a"), extra);
+    let parallel: Vec<&str> = extra.iter().copied().chain(["--jobs", "2"]).collect();
+    let a = train(scenario, &base.join("a"), &parallel);
     for file in [
         "metrics.json",
         "config.toml",
@@ -196,13 +197,21 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
         inst > 0.15,
         "{scenario}: test instance accuracy {inst} is near chance"
     );
-    // Same seed, same metrics.
-    let b = train(scenario, &base.join("b"), extra);
+    // Same seed, same metrics and models, whether the two trials ran in parallel or in turn.
+    let sequential: Vec<&str> = extra.iter().copied().chain(["--jobs", "1"]).collect();
+    let b = train(scenario, &base.join("b"), &sequential);
     assert_eq!(
         without_times(&a),
         without_times(&b),
-        "{scenario}: two runs with one seed differ"
+        "{scenario}: two runs with one seed differ (--jobs 2 vs --jobs 1)"
     );
+    for t in ["model-trial0.lgdm", "model-trial1.lgdm"] {
+        assert!(
+            std::fs::read(base.join("a").join(t)).unwrap()
+                == std::fs::read(base.join("b").join(t)).unwrap(),
+            "{scenario}: {t} differs between --jobs 2 and --jobs 1"
+        );
+    }
 }
 
 #[test]

@@ -244,6 +244,27 @@ pub fn compute_features(
     }
 }
 
+/// The experiment library's view of a feature table, with the manifest's split and names.
+pub fn table<'a>(
+    features: &'a FeatureTable,
+    train_collections: &'a [u32],
+    test_collections: &'a [u32],
+    category_names: &'a [String],
+) -> lgdm_gdm::experiment::Table<'a> {
+    lgdm_gdm::experiment::Table {
+        features: &features.features,
+        dim: features.dim,
+        collection: &features.collection,
+        category: &features.category,
+        instance: &features.instance,
+        sequence: &features.sequence,
+        frame: &features.frame,
+        train_collections,
+        test_collections,
+        category_names,
+    }
+}
+
 /// Opens the dataset named on the command line, or the embedded default.
 pub fn open_dataset(dir: Option<&Path>, reporter: &Reporter) -> Result<Dataset> {
     let dir = match dir {

@@ -3,10 +3,8 @@
 //! `main` only parses arguments, runs one subcommand and maps its error to an exit code;
 //! every subcommand lives in its own module under `cmd/` and composes library calls.
 
-mod calibration;
 mod cmd;
 mod data;
-mod experiment;
 mod plot;
 mod progress;
 mod report;

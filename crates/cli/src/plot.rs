@@ -1,12 +1,12 @@
 //! PNG plots of a run in the style of the paper's figures: a mean line per series over
 //! steps with a shaded ± std band across trials, and per-category test accuracy bars.
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
 
-use crate::experiment::metrics::{MeanStd, RunMetrics, StepRecord};
+use lgdm_gdm::experiment::{MeanStd, RunMetrics, StepRecord};
 
 const WIDTH: u32 = 800;
 const HEIGHT: u32 = 500;
@@ -51,18 +51,16 @@ fn series(m: &RunMetrics, name: &str, f: impl Fn(&StepRecord) -> Option<f64>) ->
 }
 
 fn write_png(path: &Path, buf: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("png.tmp");
+    let mut bytes = Vec::new();
     {
-        let file =
-            std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), WIDTH, HEIGHT);
+        let mut enc = png::Encoder::new(&mut bytes, WIDTH, HEIGHT);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut w = enc.write_header()?;
         w.write_image_data(buf)?;
         w.finish()?;
     }
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
+    lgdm_gdm::experiment::run_dir::write_atomic(path, &bytes)?;
     Ok(())
 }
 

@@ -1,6 +1,6 @@
 //! Terminal tables of a run's results (mean ± std over trials).
 
-use crate::experiment::metrics::{MeanStd, RunMetrics};
+use lgdm_gdm::experiment::{MeanStd, RunMetrics};
 use std::fmt::Write;
 
 fn pct(m: &MeanStd) -> String {

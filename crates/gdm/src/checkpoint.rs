@@ -418,21 +418,10 @@ impl Gdm {
         })
     }
 
-    /// Writes the checkpoint atomically: to a temporary file in the same directory, flushed to
-    /// disk, then renamed over `path`. On error no partial file is left at `path`.
+    /// Writes the checkpoint atomically ([`write_atomic`]): on error no partial file is left at
+    /// `path`.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let mut tmp = tempfile::Builder::new()
-            .prefix(".lgdm-checkpoint-")
-            .suffix(".tmp")
-            .tempfile_in(dir)?;
-        tmp.write_all(&self.to_bytes())?;
-        tmp.as_file().sync_all()?;
-        tmp.persist(path)
-            .map_err(|e| CheckpointError::Io(e.error))?;
+        write_atomic(path, &self.to_bytes())?;
         Ok(())
     }
 
@@ -441,4 +430,25 @@ impl Gdm {
         let bytes = std::fs::read(path)?;
         Gdm::from_bytes(&bytes)
     }
+}
+
+/// Writes `bytes` atomically: to a temporary file in `path`'s directory, flushed to disk, then
+/// renamed over `path`. On error no partial file is left at `path`. Checkpoints and run
+/// directories (`experiment::run_dir`) are written this way.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .map_or_else(|| "file".into(), |n| n.to_string_lossy());
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}-"))
+        .suffix(".tmp")
+        .tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
 }

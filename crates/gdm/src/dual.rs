@@ -183,6 +183,13 @@ impl Gdm {
         &self.semantic
     }
 
+    /// The sequence id of the last trained sample, or `None` when the next sample starts a new
+    /// sequence (a fresh model, or after [`Gdm::end_episode`] / [`Gdm::replay`]). A sample with
+    /// this id continues that sequence's temporal context.
+    pub fn current_sequence(&self) -> Option<u64> {
+        self.sequence
+    }
+
     /// One pass over the samples in order (contexts reset whenever `sequence` changes; a
     /// sequence may continue across calls). The whole batch is validated before any learning:
     /// on error the model is unchanged.

@@ -1,6 +1,6 @@
 //! The Growing Dual-Memory network (GDM): an episodic and a semantic Gamma-GWR memory for
 //! lifelong, open-ended recognition of instances and categories from sequences of feature
-//! vectors, with intrinsic replay against catastrophic forgetting (DESIGN.md §3).
+//! vectors, with intrinsic replay against catastrophic forgetting (docs/DESIGN.md §3).
 //!
 //! - [`config`]: hyperparameters ([`GdmConfig`], presets, validation).
 //! - [`network`]: the Gamma-GWR network ([`GammaGwr`]).
@@ -10,6 +10,8 @@
 //! - [`metric`]: distance metrics and the best-node search.
 //! - [`scores`]: accuracy and quantization-error helpers.
 //! - [`checkpoint`]: the versioned, checksummed, atomically written model file.
+//! - [`experiment`]: the paper's scenarios run over trials on a labelled feature table (plans,
+//!   runner, records, run directories) — what `lgdm train` and `lgdm.run_scenario` call.
 //! - [`error`]: typed errors.
 //!
 //! Labels are open-ended `u32`s (no class count declared); samples may be unlabelled. Each
@@ -46,6 +48,7 @@ pub mod checkpoint;
 pub mod config;
 pub mod dual;
 pub mod error;
+pub mod experiment;
 pub mod memory;
 pub mod metric;
 pub mod network;

@@ -43,28 +43,6 @@ pub fn accuracy(pairs: impl IntoIterator<Item = (Option<u32>, Option<u32>)>) -> 
     }
 }
 
-/// Mean of the values (NaN for none).
-pub fn mean(values: impl IntoIterator<Item = f64>) -> f64 {
-    let (mut sum, mut n) = (0.0, 0usize);
-    for v in values {
-        sum += v;
-        n += 1;
-    }
-    if n == 0 { f64::NAN } else { sum / n as f64 }
-}
-
-/// Mean and sample standard deviation (0 for a single value; NaN for none), for averages over
-/// trials.
-pub fn mean_std(values: &[f64]) -> (f64, f64) {
-    let m = mean(values.iter().copied());
-    let sd = if values.len() < 2 {
-        if values.is_empty() { f64::NAN } else { 0.0 }
-    } else {
-        (values.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (values.len() - 1) as f64).sqrt()
-    };
-    (m, sd)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -78,13 +56,5 @@ mod tests {
             (Some(2), Some(2)),
         ]);
         assert!((acc - 2.0 / 3.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn mean_std_by_hand() {
-        let (m, sd) = mean_std(&[1.0, 2.0, 3.0, 4.0]);
-        assert_eq!(m, 2.5);
-        assert!((sd - (5.0f64 / 3.0).sqrt()).abs() < 1e-12);
-        assert_eq!(mean_std(&[7.0]), (7.0, 0.0));
     }
 }

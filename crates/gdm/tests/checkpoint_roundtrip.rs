@@ -211,3 +211,29 @@ fn damaged_content_with_a_valid_checksum_never_panics() {
         Err(CheckpointError::Corrupt(_))
     ));
 }
+
+/// The sequence a model trained last (so that the next sample continues its temporal context)
+/// is part of the checkpoint, and an episode end or a replay clears it.
+#[test]
+fn current_sequence_survives_the_checkpoint() {
+    let mut gdm = Gdm::new(GdmConfig::default(), 2).unwrap();
+    assert_eq!(gdm.current_sequence(), None);
+    let xs = [[0.0, 0.0], [1.0, 1.0], [0.5, 0.5]];
+    for id in [7u64, 1 << 63, u64::MAX] {
+        let samples: Vec<Sample> = xs.iter().map(|x| Sample::labelled(x, id, 1, 2)).collect();
+        gdm.train(&samples).unwrap();
+        assert_eq!(gdm.current_sequence(), Some(id));
+        let back = Gdm::from_bytes(&gdm.to_bytes()).unwrap();
+        assert_eq!(back.current_sequence(), Some(id));
+    }
+    gdm.end_episode();
+    assert_eq!(gdm.current_sequence(), None);
+    assert_eq!(
+        Gdm::from_bytes(&gdm.to_bytes()).unwrap().current_sequence(),
+        None
+    );
+    let samples: Vec<Sample> = xs.iter().map(|x| Sample::labelled(x, 3, 1, 2)).collect();
+    gdm.train(&samples).unwrap();
+    gdm.replay().unwrap();
+    assert_eq!(gdm.current_sequence(), None);
+}

@@ -9,9 +9,9 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::cmd::train::write_atomic;
 use crate::data::{self, Encoder};
 use crate::progress::{ProgressMode, Reporter};
+use lgdm_gdm::experiment::run_dir::write_atomic;
 
 /// Which collections to score.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

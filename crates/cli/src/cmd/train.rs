@@ -1,27 +1,26 @@
 //! `lgdm train`: run one of the paper's lifelong-learning scenarios over several trials and
 //! write the model(s), `metrics.json`, `config.toml`, plots and a summary table.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
 use lgdm_gdm::GdmConfig;
-use serde::{Deserialize, Serialize};
+use lgdm_gdm::experiment::run_dir::{self, Provenance, Run, RunConfig};
+use lgdm_gdm::experiment::{
+    DEFAULT_EVAL_SAMPLES, DEFAULT_TRIALS, Experiment, Scenario, Settings, StepProgress,
+};
+use serde::Deserialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::data::{self, Encoder};
-use crate::experiment::metrics::{RunMetrics, Summary};
-use crate::experiment::scenario::Scenario;
-use crate::experiment::{RunData, StepProgress, TrialSettings, run_trial};
 use crate::progress::{ProgressMode, Reporter};
 use crate::report;
-
-/// Version of the `metrics.json` layout.
-pub const METRICS_FORMAT_VERSION: u32 = 1;
 
 /// Arguments of `lgdm train`.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
     /// The learning protocol (see README, "Scenarios").
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = scenario_parser())]
     pub scenario: Scenario,
     /// Dataset directory written by `lgdm gen-dataset` (default: the embedded small dataset,
     /// generated into the cache directory on first use).
@@ -43,8 +42,12 @@ pub struct Args {
     #[arg(long)]
     pub preset: Option<String>,
     /// Number of trials (different seeds, orders and held-out instances) to average over.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = DEFAULT_TRIALS)]
     pub trials: usize,
+    /// Trials run at the same time, in parallel threads (default: the number of cores). The
+    /// results do not depend on it.
+    #[arg(long)]
+    pub jobs: Option<usize>,
     /// Intrinsic replay after every step (default: on, except for batch).
     #[arg(long, overrides_with = "no_replay")]
     pub replay: bool,
@@ -62,7 +65,7 @@ pub struct Args {
     pub eval_every: Option<usize>,
     /// Per-step evaluations use at most this many samples per set (whole sequences, drawn with
     /// the trial's seed); 0 = all. The final figures always use the whole test set.
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = DEFAULT_EVAL_SAMPLES)]
     pub eval_samples: usize,
     /// Batch only: train on about N samples per epoch, the same per-trial subset of whole
     /// training sequences every epoch, N / categories per category (the paper's batch runs use
@@ -82,44 +85,6 @@ pub struct Args {
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
-}
-
-/// The settings of a run, as written to `config.toml`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct RunConfig {
-    /// Scenario name.
-    pub scenario: Scenario,
-    /// Encoder name.
-    pub encoder: String,
-    /// Dataset directory.
-    pub dataset: String,
-    /// Trials.
-    pub trials: usize,
-    /// Base seed.
-    pub seed: u64,
-    /// Intrinsic replay.
-    pub replay: bool,
-    /// Epochs per step.
-    pub epochs: usize,
-    /// Evaluation period in steps.
-    pub eval_every: usize,
-    /// Per-step evaluation sample cap (0 = all).
-    pub eval_samples: usize,
-    /// Batch: training-sample cap per epoch (0 = all).
-    #[serde(default)]
-    pub train_samples: usize,
-    /// Validation mode: the evaluation set is two training collections, not the test set.
-    pub validate: bool,
-    /// Where the hyperparameters came from.
-    pub hyperparameters_from: String,
-    /// `--encoder ae`: the checkpoint's path (absent for GOOD).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ae_checkpoint: Option<String>,
-    /// `--encoder ae`: FNV-1a hash of the checkpoint's bytes, 16 hex digits (absent for GOOD).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ae_checkpoint_fnv1a: Option<String>,
-    /// The dual memory's hyperparameters.
-    pub gdm: GdmConfig,
 }
 
 #[derive(Deserialize)]
@@ -142,29 +107,46 @@ pub fn read_config(path: &Path) -> Result<GdmConfig> {
     Ok(config)
 }
 
-/// The hyperparameters a run uses, and a note on where they came from.
-pub fn resolve_config(args: &Args) -> Result<(GdmConfig, String)> {
-    let (mut config, from) = if let Some(path) = &args.config {
-        (read_config(path)?, format!("file {}", path.display()))
+/// `--scenario`'s parser: the library's names, listed in `--help`.
+fn scenario_parser() -> impl clap::builder::TypedValueParser<Value = Scenario> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(Scenario::ALL.map(Scenario::name)).map(|s| {
+        s.parse::<Scenario>()
+            .expect("clap passes only listed names")
+    })
+}
+
+/// The experiment settings of the arguments, and a note on where the hyperparameters came from.
+fn settings(args: &Args) -> Result<(Settings, String)> {
+    let mut settings = Settings::new(args.scenario);
+    let from = if let Some(path) = &args.config {
+        settings.config = read_config(path)?;
+        format!("file {}", path.display())
     } else if let Some(name) = &args.preset {
-        (
-            GdmConfig::preset(name).with_context(|| format!("unknown preset {name:?}"))?,
-            format!("preset {name}"),
-        )
+        settings.config =
+            GdmConfig::preset(name).with_context(|| format!("unknown preset {name:?}"))?;
+        format!("preset {name}")
     } else {
-        let name = args.scenario.default_preset();
-        let base = GdmConfig::preset(name).expect("built-in preset");
-        (
-            crate::calibration::calibrated(base, args.encoder),
-            format!("preset {name}, calibrated for {}", args.encoder.name()),
-        )
+        format!("preset {}", args.scenario.default_preset())
     };
     if args.no_context {
-        config.episodic.context_depth = 0;
-        config.semantic.context_depth = 0;
+        settings = settings.without_context();
     }
-    config.validate().context("invalid hyperparameters")?;
-    Ok((config, from))
+    settings.trials = args.trials;
+    settings.seed = args.seed;
+    if args.no_replay {
+        settings.replay = false;
+    } else if args.replay {
+        settings.replay = true;
+    }
+    if let Some(epochs) = args.epochs {
+        settings.epochs = epochs;
+    }
+    settings.eval_every = args.eval_every;
+    settings.eval_samples = args.eval_samples;
+    settings.train_samples = args.train_samples;
+    settings.validate = args.validate;
+    Ok((settings, from))
 }
 
 fn default_run_dir(scenario: Scenario) -> PathBuf {
@@ -178,38 +160,23 @@ fn default_run_dir(scenario: Scenario) -> PathBuf {
     }
 }
 
-/// Writes bytes to a file atomically (temp file + rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension(format!(
-        "{}.tmp",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+/// `--jobs`, or the number of cores.
+fn jobs(requested: Option<usize>) -> Result<usize> {
+    match requested {
+        Some(0) => anyhow::bail!("--jobs must be at least 1"),
+        Some(n) => Ok(n),
+        None => Ok(lgdm_gdm::experiment::default_jobs()),
+    }
 }
 
 /// Runs `lgdm train`.
 pub fn run(args: Args) -> Result<()> {
-    if args.trials == 0 {
-        bail!("--trials must be at least 1");
-    }
-    if args.train_samples > 0 && args.scenario != Scenario::Batch {
-        bail!("--train-samples applies to --scenario batch only");
-    }
-    if args.epochs == Some(0) {
-        bail!("--epochs must be at least 1");
-    }
     let reporter = Reporter::new(args.progress);
-    let (config, from) = resolve_config(&args)?;
+    let (settings, from) = settings(&args)?;
+    let jobs = jobs(args.jobs)?;
     let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
-    let replay = if args.no_replay {
-        false
-    } else {
-        args.replay || args.scenario.replay_by_default()
-    };
     let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
-    let table = data::features(&ds, &source, &reporter)?;
+    let features = data::features(&ds, &source, &reporter)?;
     let manifest = ds.manifest();
     let split = |s| {
         manifest
@@ -219,129 +186,84 @@ pub fn run(args: Args) -> Result<()> {
             .map(|c| c.index)
             .collect::<Vec<u32>>()
     };
-    let run_data = RunData {
-        table: &table,
-        train_collections: split(lgdm_pointcloud::dataset::Split::Train),
-        test_collections: split(lgdm_pointcloud::dataset::Split::Test),
-        category_names: manifest.categories.clone(),
-    };
-    let mut run_data = run_data;
+    let train_collections = split(lgdm_pointcloud::dataset::Split::Train);
+    let test_collections = split(lgdm_pointcloud::dataset::Split::Test);
+    let table = data::table(
+        &features,
+        &train_collections,
+        &test_collections,
+        &manifest.categories,
+    );
+    let experiment = Experiment::new(table, settings)?;
     if args.validate {
-        if run_data.train_collections.len() < 3 {
-            bail!("--validate needs at least three training collections");
-        }
-        let k = run_data.train_collections.len() - 2;
-        run_data.test_collections = run_data.train_collections.split_off(k);
         reporter.message(&format!(
             "validation mode: collections {:?} are the evaluation set; the test collections are not used",
-            run_data.test_collections
+            experiment.test_collections()
         ));
     }
-    if run_data.train_collections.is_empty() || run_data.test_collections.is_empty() {
-        bail!("the dataset needs both training and test collections (see its manifest.json)");
-    }
-    let epochs = args
-        .epochs
-        .unwrap_or_else(|| args.scenario.default_epochs());
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| default_run_dir(args.scenario));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-
-    let base = TrialSettings {
-        scenario: args.scenario,
-        config: config.clone(),
-        epochs,
-        replay,
-        eval_every: 1,
-        eval_samples: args.eval_samples,
-        train_samples: args.train_samples,
-        seed: args.seed,
-    };
-    let steps = crate::experiment::plan_trial(&run_data, &base).steps.len();
-    let eval_every = args.eval_every.unwrap_or_else(|| steps.div_ceil(25).max(1));
-    let run_config = RunConfig {
-        scenario: args.scenario,
+    let dataset = ds.dir().display().to_string();
+    let provenance = Provenance {
         encoder: args.encoder.name().into(),
-        dataset: ds.dir().display().to_string(),
-        trials: args.trials,
-        seed: args.seed,
-        replay,
-        epochs,
-        eval_every,
-        eval_samples: args.eval_samples,
-        train_samples: args.train_samples,
-        validate: args.validate,
+        dataset: dataset.clone(),
         hyperparameters_from: from,
         ae_checkpoint: source.ae_checkpoint().map(|p| p.display().to_string()),
         ae_checkpoint_fnv1a: source
             .ae_checkpoint()
             .map(|p| data::file_hash(p).map(|h| format!("{h:016x}")))
             .transpose()?,
-        gdm: config,
     };
-    write_atomic(
-        &out.join("config.toml"),
-        toml::to_string_pretty(&run_config)?.as_bytes(),
+    let run_config = RunConfig::new(&experiment, &provenance);
+    run_dir::write_atomic(
+        &out.join(run_dir::CONFIG_FILE),
+        run_config.to_toml().as_bytes(),
     )?;
 
+    let s = experiment.settings();
+    let steps = experiment.steps();
     reporter.message(&format!(
-        "{}: {} trial(s) of {} steps on {} samples ({} features), replay {}, context {}",
-        args.scenario.name(),
-        args.trials,
+        "{}: {} trial(s) of {} steps on {} samples ({} features), replay {}, context {}, {} job(s)",
+        s.scenario,
+        s.trials,
         steps,
-        table.len(),
-        table.dim,
-        if replay { "on" } else { "off" },
-        if run_config.gdm.episodic.context_depth > 0 {
+        features.len(),
+        features.dim,
+        if s.replay { "on" } else { "off" },
+        if s.config.episodic.context_depth > 0 {
             "on"
         } else {
             "off"
         },
+        jobs.min(s.trials),
     ));
-    let mut trials = Vec::with_capacity(args.trials);
-    let total_steps = (steps * args.trials) as u64;
+    let total_steps = (steps * s.trials) as u64;
     let task = reporter.bar("train", total_steps);
-    for t in 0..args.trials {
-        let settings = TrialSettings {
-            seed: args.seed + t as u64,
-            eval_every,
-            ..base.clone()
-        };
-        let mut on_step = |p: StepProgress| {
-            task.update(&p.label, (t * steps + p.step) as u64, total_steps);
-            reporter.event(&serde_json::json!({ "event": "step", "progress": p }));
-        };
-        let (gdm, record) = run_trial(&run_data, &settings, t, &mut on_step)?;
-        let model = out.join(format!("model-trial{t}.lgdm"));
+    let done = AtomicU64::new(0);
+    let on_step = |p: StepProgress| {
+        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+        task.update(&p.label, n.min(total_steps), total_steps);
+        reporter.event(&serde_json::json!({ "event": "step", "progress": p }));
+    };
+    let trials = experiment.run_with(jobs, &on_step, &|t, gdm, record| {
+        let model = out.join(run_dir::model_file(t));
         gdm.save(&model)
-            .with_context(|| format!("saving {}", model.display()))?;
-        trials.push(record);
-    }
+            .map_err(|e| lgdm_gdm::experiment::ExperimentError::Checkpoint {
+                path: model.display().to_string(),
+                source: e,
+            })?;
+        Ok(record)
+    })?;
     task.finish();
 
-    let summary = Summary::of(&trials);
-    let metrics = RunMetrics {
-        format_version: METRICS_FORMAT_VERSION,
-        scenario: args.scenario.name().into(),
-        encoder: args.encoder.name().into(),
-        dataset: ds.dir().display().to_string(),
-        seed: args.seed,
-        replay,
-        context: run_config.gdm.episodic.context_depth > 0,
-        epochs,
-        categories: manifest.categories.clone(),
-        trials,
-        summary,
-    };
-    write_atomic(
-        &out.join("metrics.json"),
-        serde_json::to_string_pretty(&metrics)?.as_bytes(),
-    )?;
+    let metrics = experiment.metrics(trials, args.encoder.name(), &dataset);
+    Run::write_files(&out, &run_config, &metrics)?;
     crate::plot::write_run_plots(&out, &metrics).context("drawing the plots")?;
     let table_text = report::summary_table(&metrics);
-    write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
+    run_dir::write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
     println!("{table_text}");
     println!("run directory: {}", out.display());
     Ok(())

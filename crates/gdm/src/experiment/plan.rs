@@ -30,9 +30,7 @@ use rand::{Rng, RngExt};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// A learning protocol of the paper.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Scenario {
     /// All training collections, several epochs.
@@ -48,6 +46,15 @@ pub enum Scenario {
 }
 
 impl Scenario {
+    /// Every scenario, in the paper's order.
+    pub const ALL: [Scenario; 5] = [
+        Scenario::Batch,
+        Scenario::Incremental,
+        Scenario::Ni,
+        Scenario::Nc,
+        Scenario::Nic,
+    ];
+
     /// The name used on the command line and in files.
     pub fn name(self) -> &'static str {
         match self {
@@ -81,6 +88,27 @@ impl Scenario {
     }
 }
 
+impl std::fmt::Display for Scenario {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Scenario {
+    type Err = String;
+
+    /// Parses a scenario name (`batch`, `incremental`, `ni`, `nc`, `nic`).
+    fn from_str(s: &str) -> Result<Scenario, String> {
+        Scenario::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Scenario::ALL.iter().map(|c| c.name()).collect();
+                format!("unknown scenario {s:?} (one of {})", names.join(", "))
+            })
+    }
+}
+
 /// Labels of every row of a feature table, column-wise.
 #[derive(Clone, Copy, Debug)]
 pub struct Rows<'a> {
@@ -100,6 +128,11 @@ impl Rows<'_> {
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.sequence.len()
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.sequence.is_empty()
     }
 }
 

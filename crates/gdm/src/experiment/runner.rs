@@ -1,24 +1,21 @@
-//! Lifelong-learning experiments: a scenario's plan run over trials, with every figure recorded.
+//! The trial runner: a scenario's plan fed to the dual memory step by step, measured after every
+//! step, and the final figures of the trial.
 //!
-//! The algorithm lives in `lgdm_gdm`; this module only feeds it the plan's sequences in order and
-//! measures after every step.
+//! The algorithm lives in [`crate::Gdm`]; this module only feeds it the plan's sequences in order
+//! (train, replay, end of episode) and evaluates.
 
-pub mod metrics;
-pub mod scenario;
-
-use anyhow::{Context, Result};
-use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample, Scores};
-use lgdm_pointcloud::features::FeatureTable;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
 
-use metrics::{Figures, StepRecord, TrialRecord};
-use scenario::{EvalScope, Plan, Rows, Scenario};
+use super::plan::{self, EvalScope, Plan, Scenario};
+use super::records::{Figures, StepRecord, TrialRecord};
+use super::{ExperimentError, StepProgress, Table};
+use crate::{Gdm, GdmConfig, PredictOptions, Scores};
 
-/// Everything a trial needs besides the data.
+/// Everything one trial needs besides the data.
 #[derive(Clone, Debug)]
-pub struct TrialSettings {
+pub(crate) struct TrialSettings {
     /// The protocol.
     pub scenario: Scenario,
     /// Dual-memory hyperparameters.
@@ -37,63 +34,6 @@ pub struct TrialSettings {
     pub train_samples: usize,
     /// Trial seed: plan, held-out instances and the network's RNG.
     pub seed: u64,
-}
-
-/// Progress of a run, for the cli's bar or JSON lines.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct StepProgress {
-    /// Trial index.
-    pub trial: usize,
-    /// Step index within the trial (1-based).
-    pub step: usize,
-    /// Steps in the trial.
-    pub steps: usize,
-    /// Step label.
-    pub label: String,
-    /// Test category accuracy of the semantic memory after the step, if evaluated.
-    pub test_category_accuracy: Option<f64>,
-    /// Episodic nodes after the step.
-    pub episodic_nodes: usize,
-}
-
-/// The data of a run: feature table plus the manifest facts the plans need.
-#[derive(Debug)]
-pub struct RunData<'a> {
-    /// Features and row labels.
-    pub table: &'a FeatureTable,
-    /// Training collections (manifest split).
-    pub train_collections: Vec<u32>,
-    /// Test collections (manifest split).
-    pub test_collections: Vec<u32>,
-    /// Category names by id.
-    pub category_names: Vec<String>,
-}
-
-impl RunData<'_> {
-    fn rows(&self) -> Rows<'_> {
-        Rows {
-            collection: &self.table.collection,
-            category: &self.table.category,
-            instance: &self.table.instance,
-            sequence: &self.table.sequence,
-            frame: &self.table.frame,
-        }
-    }
-
-    /// The samples of some sequences, in order, with labels.
-    pub fn samples<'s>(&'s self, sequences: &[Vec<usize>]) -> Vec<Sample<'s>> {
-        let t = self.table;
-        sequences
-            .iter()
-            .flatten()
-            .map(|&i| Sample {
-                x: t.row(i),
-                sequence: t.sequence[i],
-                instance: Some(t.instance[i]),
-                category: Some(t.category[i]),
-            })
-            .collect()
-    }
 }
 
 /// Whole sequences holding at most `max_samples` samples, drawn at random (seeded) and kept in
@@ -119,14 +59,14 @@ pub fn subsample(seqs: &[Vec<usize>], max_samples: usize, seed: u64) -> Vec<Vec<
 }
 
 /// Builds the plan of one trial.
-pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
+pub(crate) fn plan_trial(data: &Table<'_>, s: &TrialSettings) -> Plan {
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
-    let mut plan = scenario::plan(
+    let mut plan = plan::plan(
         s.scenario,
         data.rows(),
-        &data.train_collections,
-        &data.test_collections,
-        &data.category_names,
+        data.train_collections,
+        data.test_collections,
+        data.category_names,
         s.epochs,
         &mut rng,
     );
@@ -137,7 +77,7 @@ pub fn plan_trial(data: &RunData<'_>, s: &TrialSettings) -> Plan {
         let keep = stratified_subset(
             &first.sequences,
             s.train_samples,
-            |q| data.table.category[q[0]],
+            |q| data.category[q[0]],
             s.seed ^ 0x7472_6169_6e5f_7375,
         );
         for step in &mut plan.steps {
@@ -189,16 +129,17 @@ fn figures(scores: &Scores) -> Figures {
 
 /// Runs one trial: the plan's steps in order, measuring after each; returns the trained model
 /// and the trial's record.
-pub fn run_trial(
-    data: &RunData<'_>,
+pub(crate) fn run_trial(
+    data: &Table<'_>,
     s: &TrialSettings,
     trial: usize,
-    progress: &mut dyn FnMut(StepProgress),
-) -> Result<(Gdm, TrialRecord)> {
+    progress: &dyn Fn(StepProgress),
+) -> Result<(Gdm, TrialRecord), ExperimentError> {
     let plan = plan_trial(data, s);
     let mut config = s.config.clone();
     config.seed = s.seed;
-    let mut gdm = Gdm::new(config, data.table.dim).context("creating the dual memory")?;
+    let mut gdm =
+        Gdm::new(config, data.dim).map_err(ExperimentError::gdm("creating the dual memory"))?;
     let opts = PredictOptions::default();
     let started = Instant::now();
     let mut steps = Vec::with_capacity(plan.steps.len());
@@ -216,15 +157,16 @@ pub fn run_trial(
         } {
             train_stats = Some(
                 gdm.train(&samples)
-                    .with_context(|| format!("training on {}", step.label))?,
+                    .map_err(ExperimentError::gdm(format!("training on {}", step.label)))?,
             );
         }
         if s.replay {
-            gdm.replay().context("intrinsic replay")?;
+            gdm.replay()
+                .map_err(ExperimentError::gdm("intrinsic replay"))?;
         }
         gdm.end_episode();
         for seq in &step.sequences {
-            seen_categories.insert(data.table.category[seq[0]]);
+            seen_categories.insert(data.category[seq[0]]);
         }
         if s.scenario != Scenario::Batch {
             seen_train.extend(step.sequences.iter().cloned());
@@ -236,7 +178,7 @@ pub fn run_trial(
                 EvalScope::All => seqs.to_vec(),
                 EvalScope::SeenCategories => seqs
                     .iter()
-                    .filter(|q| seen_categories.contains(&data.table.category[q[0]]))
+                    .filter(|q| seen_categories.contains(&data.category[q[0]]))
                     .cloned()
                     .collect(),
             }
@@ -250,7 +192,7 @@ pub fn run_trial(
             let train_seqs = subsample(train_seqs, s.eval_samples, s.seed ^ ((k as u64) << 20));
             let train = gdm
                 .evaluate(&data.samples(&train_seqs), opts)
-                .context("evaluating on training data")?;
+                .map_err(ExperimentError::gdm("evaluating on training data"))?;
             let test_seqs = if last {
                 scoped(&plan.test)
             } else {
@@ -266,7 +208,7 @@ pub fn run_trial(
             } else {
                 Some(
                     gdm.evaluate(&test_samples, opts)
-                        .context("evaluating on test data")?,
+                        .map_err(ExperimentError::gdm("evaluating on test data"))?,
                 )
             };
             (Some(train), test)
@@ -303,20 +245,25 @@ pub fn run_trial(
     let t0 = Instant::now();
     let predictions = gdm
         .predict(&test_samples, opts)
-        .context("predicting the test set")?;
+        .map_err(ExperimentError::gdm("predicting the test set"))?;
     let inference_ms = if test_samples.is_empty() {
         0.0
     } else {
         t0.elapsed().as_secs_f64() * 1e3 / test_samples.len() as f64
     };
-    let test = figures(&gdm.evaluate(&test_samples, opts)?);
-    let test_no_context =
-        figures(&gdm.evaluate(&test_samples, PredictOptions { no_context: true })?);
+    let final_test = ExperimentError::gdm("evaluating the final test set");
+    let test = figures(&gdm.evaluate(&test_samples, opts).map_err(&final_test)?);
+    let test_no_context = figures(
+        &gdm.evaluate(&test_samples, PredictOptions { no_context: true })
+            .map_err(&final_test)?,
+    );
     let new_samples = data.samples(&plan.new_instance);
     let new_instance = if new_samples.is_empty() {
         None
     } else {
-        Some(figures(&gdm.evaluate(&new_samples, opts)?))
+        Some(figures(&gdm.evaluate(&new_samples, opts).map_err(
+            ExperimentError::gdm("evaluating the held-out instances"),
+        )?))
     };
     let n_cat = data.category_names.len();
     let mut hits = vec![0usize; n_cat];

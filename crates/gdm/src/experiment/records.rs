@@ -1,8 +1,15 @@
-//! The records a run writes to `metrics.json`, and their summary over trials.
+//! The records a run writes to `metrics.json`, and their summary over trials. NaN (an accuracy
+//! over no labelled sample) is written as `null` and read back as NaN.
 //!
 //! Accuracies are fractions in [0, 1]; times in seconds unless the name says `ms`.
 
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// Reads a number that JSON stores as `null` when it is NaN (serde_json writes NaN as `null`),
+/// so a `metrics.json` with an undefined accuracy reads back.
+fn nan_from_null<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
 
 /// Accuracies on one set of samples.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -10,10 +17,13 @@ pub struct Figures {
     /// Number of samples scored.
     pub n: usize,
     /// Instance accuracy of the episodic memory (G-EM).
+    #[serde(deserialize_with = "nan_from_null")]
     pub instance_accuracy: f64,
     /// Category accuracy of the episodic memory (G-EM).
+    #[serde(deserialize_with = "nan_from_null")]
     pub category_accuracy_em: f64,
     /// Category accuracy of the semantic memory (G-SM): the system's category answer.
+    #[serde(deserialize_with = "nan_from_null")]
     pub category_accuracy_sm: f64,
 }
 
@@ -79,8 +89,10 @@ pub struct TrialRecord {
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
 pub struct MeanStd {
     /// Mean over trials.
+    #[serde(deserialize_with = "nan_from_null")]
     pub mean: f64,
     /// Sample standard deviation over trials (0 for one trial).
+    #[serde(deserialize_with = "nan_from_null")]
     pub std: f64,
 }
 

@@ -1,0 +1,454 @@
+//! The run-directory format, and the merge of single-trial runs of one experiment.
+//!
+//! A run directory holds `config.toml` ([`RunConfig`]: the exact settings and
+//! hyperparameters), `metrics.json` ([`RunMetrics`], format [`METRICS_FORMAT_VERSION`]) and one
+//! checkpoint per trial, `model-trial<t>.lgdm` ([`model_file`]). Front ends add their own
+//! renderings (`lgdm train` writes `summary.txt` and plots beside them).
+//!
+//! Trial t of an experiment with base seed S uses seed S + t, so a 5-trial experiment can run as
+//! five single-trial runs and be [`merge`]d: runs merge only when they are one experiment
+//! (scenario, encoder — for the autoencoder the checkpoint's bytes —, dataset, replay, epochs,
+//! evaluation settings and every hyperparameter but the seed agree) and no seed appears twice.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::{Experiment, ExperimentError, RunMetrics, Scenario, Summary, TrialRecord};
+use crate::GdmConfig;
+
+/// Version of the `metrics.json` layout.
+pub const METRICS_FORMAT_VERSION: u32 = 1;
+/// The settings file of a run.
+pub const CONFIG_FILE: &str = "config.toml";
+/// The metrics file of a run.
+pub const METRICS_FILE: &str = "metrics.json";
+
+/// The checkpoint file of trial `t` in a run directory.
+pub fn model_file(trial: usize) -> String {
+    format!("model-trial{trial}.lgdm")
+}
+
+/// The settings of a run, as written to `config.toml`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RunConfig {
+    /// Scenario name.
+    pub scenario: Scenario,
+    /// Encoder name.
+    pub encoder: String,
+    /// Dataset directory.
+    pub dataset: String,
+    /// Trials.
+    pub trials: usize,
+    /// Base seed.
+    pub seed: u64,
+    /// Intrinsic replay.
+    pub replay: bool,
+    /// Epochs per step.
+    pub epochs: usize,
+    /// Evaluation period in steps.
+    pub eval_every: usize,
+    /// Per-step evaluation sample cap (0 = all).
+    pub eval_samples: usize,
+    /// Batch: training-sample cap per epoch (0 = all).
+    #[serde(default)]
+    pub train_samples: usize,
+    /// Validation mode: the evaluation set is two training collections, not the test set.
+    pub validate: bool,
+    /// Where the hyperparameters came from.
+    pub hyperparameters_from: String,
+    /// `--encoder ae`: the checkpoint's path (absent for GOOD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ae_checkpoint: Option<String>,
+    /// `--encoder ae`: FNV-1a hash of the checkpoint's bytes, 16 hex digits (absent for GOOD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ae_checkpoint_fnv1a: Option<String>,
+    /// The dual memory's hyperparameters.
+    pub gdm: GdmConfig,
+}
+
+/// Where a run's features came from: recorded in `config.toml` and `metrics.json`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Provenance {
+    /// Encoder name (`good`, `ae`).
+    pub encoder: String,
+    /// Dataset directory.
+    pub dataset: String,
+    /// Where the hyperparameters came from (a preset, a file).
+    pub hyperparameters_from: String,
+    /// The autoencoder checkpoint's path, for `ae`.
+    pub ae_checkpoint: Option<String>,
+    /// FNV-1a of the autoencoder checkpoint's bytes (16 hex digits), for `ae`.
+    pub ae_checkpoint_fnv1a: Option<String>,
+}
+
+impl RunConfig {
+    /// The `config.toml` of an experiment.
+    pub fn new(experiment: &Experiment<'_>, provenance: &Provenance) -> RunConfig {
+        let s = experiment.settings();
+        RunConfig {
+            scenario: s.scenario,
+            encoder: provenance.encoder.clone(),
+            dataset: provenance.dataset.clone(),
+            trials: s.trials,
+            seed: s.seed,
+            replay: s.replay,
+            epochs: s.epochs,
+            eval_every: experiment.eval_every(),
+            eval_samples: s.eval_samples,
+            train_samples: s.train_samples,
+            validate: s.validate,
+            hyperparameters_from: provenance.hyperparameters_from.clone(),
+            ae_checkpoint: provenance.ae_checkpoint.clone(),
+            ae_checkpoint_fnv1a: provenance.ae_checkpoint_fnv1a.clone(),
+            gdm: s.config.clone(),
+        }
+    }
+
+    /// As TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("a run config serialises to TOML")
+    }
+}
+
+impl RunMetrics {
+    /// As pretty JSON text (floats round-trip exactly).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("run metrics serialise to JSON")
+    }
+}
+
+fn run_dir_error(path: &Path, message: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::RunDir {
+        path: path.display().to_string(),
+        message: message.to_string(),
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
+/// reader never sees half a file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
+    crate::checkpoint::write_atomic(path, bytes).map_err(|e| run_dir_error(path, e))
+}
+
+/// A finished run read back from its directory.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// The directory.
+    pub dir: PathBuf,
+    /// Its `metrics.json`.
+    pub metrics: RunMetrics,
+    /// Its `config.toml`.
+    pub config: RunConfig,
+}
+
+impl Run {
+    /// Reads a run directory's `metrics.json` and `config.toml`.
+    pub fn read(dir: &Path) -> Result<Run, ExperimentError> {
+        let mpath = dir.join(METRICS_FILE);
+        let text = std::fs::read_to_string(&mpath).map_err(|e| {
+            run_dir_error(
+                &mpath,
+                format!("{e} (is {} a finished run?)", dir.display()),
+            )
+        })?;
+        let metrics: RunMetrics =
+            serde_json::from_str(&text).map_err(|e| run_dir_error(&mpath, e))?;
+        if metrics.format_version != METRICS_FORMAT_VERSION {
+            return Err(run_dir_error(
+                &mpath,
+                format!(
+                    "format version {}, this lgdm reads version {METRICS_FORMAT_VERSION}",
+                    metrics.format_version
+                ),
+            ));
+        }
+        let cpath = dir.join(CONFIG_FILE);
+        let text = std::fs::read_to_string(&cpath).map_err(|e| run_dir_error(&cpath, e))?;
+        let config: RunConfig = toml::from_str(&text).map_err(|e| run_dir_error(&cpath, e))?;
+        Ok(Run {
+            dir: dir.to_path_buf(),
+            metrics,
+            config,
+        })
+    }
+
+    /// Writes `config.toml` and `metrics.json` into `dir` (each atomically).
+    pub fn write_files(
+        dir: &Path,
+        config: &RunConfig,
+        metrics: &RunMetrics,
+    ) -> Result<(), ExperimentError> {
+        write_atomic(&dir.join(CONFIG_FILE), config.to_toml().as_bytes())?;
+        write_atomic(&dir.join(METRICS_FILE), metrics.to_json().as_bytes())
+    }
+}
+
+/// The first setting in which `b` differs from `a`, if any (seeds and trial counts may differ).
+fn difference(a: &Run, b: &Run) -> Option<String> {
+    let (ma, mb) = (&a.metrics, &b.metrics);
+    let (ca, cb) = (&a.config, &b.config);
+    macro_rules! same {
+        ($name:literal, $x:expr, $y:expr) => {
+            if $x != $y {
+                return Some(format!("{}: {:?} vs {:?}", $name, $x, $y));
+            }
+        };
+    }
+    same!("scenario", ma.scenario, mb.scenario);
+    same!("encoder", ma.encoder, mb.encoder);
+    same!("dataset", ma.dataset, mb.dataset);
+    same!("replay", ma.replay, mb.replay);
+    same!("temporal context", ma.context, mb.context);
+    same!("epochs", ma.epochs, mb.epochs);
+    same!("categories", ma.categories, mb.categories);
+    same!("eval_every", ca.eval_every, cb.eval_every);
+    same!("eval_samples", ca.eval_samples, cb.eval_samples);
+    same!("train_samples", ca.train_samples, cb.train_samples);
+    same!("validate", ca.validate, cb.validate);
+    // The checkpoint's bytes, not its path: a copy elsewhere is the same encoder.
+    same!(
+        "autoencoder checkpoint (FNV-1a)",
+        ca.ae_checkpoint_fnv1a,
+        cb.ae_checkpoint_fnv1a
+    );
+    let mut ga = ca.gdm.clone();
+    let mut gb = cb.gdm.clone();
+    ga.seed = 0;
+    gb.seed = 0;
+    if ga != gb {
+        return Some("hyperparameters (config.toml [gdm]) differ".into());
+    }
+    None
+}
+
+/// The merged run: metrics and config, and each trial's model file with its new trial index.
+#[derive(Clone, Debug)]
+pub struct Merged {
+    /// The merged `metrics.json`.
+    pub metrics: RunMetrics,
+    /// The merged `config.toml`.
+    pub config: RunConfig,
+    /// (source model file, trial index in the merged run).
+    pub models: Vec<(PathBuf, usize)>,
+}
+
+/// Checks that the runs are one experiment and merges them, trials sorted by seed. Nothing is
+/// written.
+pub fn merge(runs: &[Run]) -> Result<Merged, ExperimentError> {
+    let Some(first) = runs.first() else {
+        return Err(ExperimentError::Merge("no runs to merge".into()));
+    };
+    for r in &runs[1..] {
+        if let Some(d) = difference(first, r) {
+            return Err(ExperimentError::Merge(format!(
+                "{} and {} are different experiments ({d}); only runs of one experiment merge",
+                first.dir.display(),
+                r.dir.display()
+            )));
+        }
+    }
+    // (seed, run index, trial record)
+    let mut all: Vec<(u64, usize, TrialRecord)> = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        for t in &r.metrics.trials {
+            if let Some((_, j, _)) = all.iter().find(|(s, _, _)| *s == t.seed) {
+                return Err(ExperimentError::Merge(format!(
+                    "seed {} appears in both {} and {}: the same trial twice would count double",
+                    t.seed,
+                    runs[*j].dir.display(),
+                    r.dir.display()
+                )));
+            }
+            all.push((t.seed, i, t.clone()));
+        }
+    }
+    if all.is_empty() {
+        return Err(ExperimentError::Merge("the runs hold no trials".into()));
+    }
+    all.sort_by_key(|(s, _, _)| *s);
+    let mut models = Vec::new();
+    let mut trials = Vec::new();
+    for (new_index, (_, i, mut t)) in all.into_iter().enumerate() {
+        models.push((runs[i].dir.join(model_file(t.trial)), new_index));
+        t.trial = new_index;
+        trials.push(t);
+    }
+    let seed = trials[0].seed;
+    let summary = Summary::of(&trials);
+    let metrics = RunMetrics {
+        seed,
+        trials,
+        summary,
+        ..first.metrics.clone()
+    };
+    let mut config = first.config.clone();
+    config.trials = metrics.trials.len();
+    config.seed = seed;
+    config.gdm.seed = seed;
+    Ok(Merged {
+        metrics,
+        config,
+        models,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::Figures;
+
+    fn figures(a: f64) -> Figures {
+        Figures {
+            n: 10,
+            instance_accuracy: a,
+            category_accuracy_em: a,
+            category_accuracy_sm: a,
+        }
+    }
+
+    fn run(dir: &str, seeds: &[u64], replay: bool) -> Run {
+        let trials: Vec<TrialRecord> = seeds
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| TrialRecord {
+                trial: i,
+                seed: s,
+                held_out_instances: vec![],
+                step_labels: vec!["a".into()],
+                steps: vec![],
+                test: figures(0.5 + s as f64 / 10.0),
+                test_no_context: figures(0.5),
+                new_instance: None,
+                per_category_test_accuracy: vec![],
+                episodic_nodes: 10,
+                semantic_nodes: 5,
+                model_size_bytes: 1000,
+                inference_ms_per_sample: 0.1,
+                train_seconds: 1.0,
+            })
+            .collect();
+        let summary = Summary::of(&trials);
+        let metrics = RunMetrics {
+            format_version: METRICS_FORMAT_VERSION,
+            scenario: "ni".into(),
+            encoder: "good".into(),
+            dataset: "/d".into(),
+            seed: seeds[0],
+            replay,
+            context: true,
+            epochs: 1,
+            categories: vec!["mug".into()],
+            trials,
+            summary,
+        };
+        let config = RunConfig {
+            scenario: Scenario::Ni,
+            encoder: "good".into(),
+            dataset: "/d".into(),
+            trials: seeds.len(),
+            seed: seeds[0],
+            replay,
+            epochs: 1,
+            eval_every: 1,
+            eval_samples: 3000,
+            train_samples: 0,
+            validate: false,
+            hyperparameters_from: "preset".into(),
+            ae_checkpoint: None,
+            ae_checkpoint_fnv1a: None,
+            gdm: GdmConfig {
+                seed: seeds[0],
+                ..Default::default()
+            },
+        };
+        Run {
+            dir: dir.into(),
+            metrics,
+            config,
+        }
+    }
+
+    #[test]
+    fn merges_trials_in_seed_order_and_summarises_all() {
+        let Merged {
+            metrics: m,
+            config: c,
+            models,
+        } = merge(&[run("b", &[2, 3], true), run("a", &[0, 1], true)]).unwrap();
+        let seeds: Vec<u64> = m.trials.iter().map(|t| t.seed).collect();
+        assert_eq!(seeds, [0, 1, 2, 3]);
+        assert_eq!(m.summary.trials, 4);
+        assert!((m.summary.test_category_accuracy_sm.mean - 0.65).abs() < 1e-12);
+        assert_eq!((c.trials, c.seed, m.seed), (4, 0, 0));
+        assert_eq!(models[0].0, Path::new("a").join("model-trial0.lgdm"));
+        assert_eq!(models[2].0, Path::new("b").join("model-trial0.lgdm"));
+        assert_eq!(models[3].1, 3);
+    }
+
+    #[test]
+    fn refuses_different_experiments_and_duplicate_seeds() {
+        let err = |runs: &[Run]| merge(runs).expect_err("refused").to_string();
+        let e = err(&[run("a", &[0], true), run("b", &[1], false)]);
+        assert!(e.contains("replay"), "{e}");
+        let e = err(&[run("a", &[0, 1], true), run("b", &[1], true)]);
+        assert!(e.contains("seed 1"), "{e}");
+        let mut other = run("c", &[5], true);
+        other.config.gdm.episodic.activation_threshold = 0.9;
+        let e = err(&[run("a", &[0], true), other]);
+        assert!(e.contains("hyperparameters"), "{e}");
+        assert!(err(&[]).contains("no runs"));
+    }
+
+    fn ae_run(dir: &str, seed: u64, path: &str, hash: &str) -> Run {
+        let mut r = run(dir, &[seed], true);
+        r.metrics.encoder = "ae".into();
+        r.config.encoder = "ae".into();
+        r.config.ae_checkpoint = Some(path.into());
+        r.config.ae_checkpoint_fnv1a = Some(hash.into());
+        r
+    }
+
+    #[test]
+    fn autoencoder_runs_merge_only_with_the_same_checkpoint_bytes() {
+        let e = merge(&[
+            ae_run("a", 0, "/x/cpu.pt", "00000000000000aa"),
+            ae_run("b", 1, "/x/cpu.pt", "00000000000000bb"),
+        ])
+        .expect_err("refused")
+        .to_string();
+        assert!(e.contains("checkpoint"), "{e}");
+        // Same bytes under another path merge, and the merged config keeps the checkpoint.
+        let m = merge(&[
+            ae_run("a", 0, "/x/cpu.pt", "00000000000000aa"),
+            ae_run("b", 1, "/y/copy.pt", "00000000000000aa"),
+        ])
+        .unwrap();
+        assert_eq!(m.config.ae_checkpoint.as_deref(), Some("/x/cpu.pt"));
+        assert_eq!(
+            m.config.ae_checkpoint_fnv1a.as_deref(),
+            Some("00000000000000aa")
+        );
+        let text = m.config.to_toml();
+        assert!(
+            text.contains("ae_checkpoint_fnv1a = \"00000000000000aa\""),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn written_runs_read_back_equal() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = run("x", &[3, 4], true);
+        Run::write_files(dir.path(), &r.config, &r.metrics).unwrap();
+        let back = Run::read(dir.path()).unwrap();
+        assert_eq!(back.config, r.config);
+        // NaN (no train step evaluated here) is written as null and read back as NaN.
+        assert!(back.metrics.summary.train_instance_accuracy.mean.is_nan());
+        assert_eq!(back.metrics.to_json(), r.metrics.to_json());
+        let e = Run::read(&dir.path().join("missing"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("finished run"), "{e}");
+    }
+}
