@@ -286,6 +286,21 @@ pub fn good_features<'py>(
         .collect();
     out.set_item("sequence", seq.into_pyarray(py))?;
     out.set_item("frame", ids(&table.frame).into_pyarray(py))?;
+    // What `lgdm.run_scenario` needs besides the rows: the manifest's split and names.
+    let manifest = ds.manifest();
+    let split = |s| -> Vec<u32> {
+        manifest
+            .collections
+            .iter()
+            .filter(|c| c.split == s)
+            .map(|c| c.index)
+            .collect()
+    };
+    out.set_item("train_collections", split(dataset::Split::Train))?;
+    out.set_item("test_collections", split(dataset::Split::Test))?;
+    out.set_item("categories", manifest.categories.clone())?;
+    out.set_item("dataset", ds.dir().display().to_string())?;
+    out.set_item("encoder", "good")?;
     Ok(out)
 }
 

@@ -9,6 +9,8 @@
 //!   dataset generation, projection of clouds to depth / RGB-D images, best-view selection.
 //! - `ae` (cargo feature `ae`): the embedding side: Rust calls the torch autoencoder of
 //!   `python/train_ae` (`AutoEncoder::load`, `infer`) through an embedded interpreter.
+//! - [`experiment`]: `run_scenario`, the paper's scenarios over trials on a feature table (the
+//!   library code `lgdm train` runs).
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
 //!
 //! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
@@ -24,6 +26,7 @@
 pub mod ae;
 pub mod data;
 pub mod errors;
+pub mod experiment;
 pub mod model;
 
 use pyo3::prelude::*;
@@ -40,8 +43,17 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .map(|s| s.to_string())
             .collect::<Vec<_>>(),
     )?;
+    m.add(
+        "SCENARIOS",
+        lgdm_gdm::experiment::Scenario::ALL
+            .iter()
+            .map(|s| s.name())
+            .collect::<Vec<_>>(),
+    )?;
     m.add_class::<model::Model>()?;
     m.add_function(wrap_pyfunction!(model::config_json, m)?)?;
+    m.add_function(wrap_pyfunction!(experiment::run_scenario, m)?)?;
+    m.add_function(wrap_pyfunction!(experiment::scenario_defaults, m)?)?;
     m.add_class::<data::PyDataset>()?;
     m.add_class::<data::SequenceIter>()?;
     m.add_function(wrap_pyfunction!(data::good_descriptor, m)?)?;

@@ -17,7 +17,6 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use lgdm_gdm::checkpoint::HEADER_LEN;
 use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample, Scores};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -53,24 +52,6 @@ pub fn config_json(text: &str) -> PyResult<String> {
     Ok(serde_json::to_string(&config).expect("a config serialises to JSON"))
 }
 
-/// The sequence id of the last trained sample stored in checkpoint `bytes` (layout: header,
-/// u64 config length, config, u64 dim, u8 flag, u64 id; see `lgdm_gdm::checkpoint`).
-pub fn trained_sequence(bytes: &[u8]) -> Option<u64> {
-    let u64_at = |pos: usize| -> Option<u64> {
-        Some(u64::from_le_bytes(
-            bytes.get(pos..pos.checked_add(8)?)?.try_into().ok()?,
-        ))
-    };
-    let config_len = usize::try_from(u64_at(HEADER_LEN)?).ok()?;
-    let flag_at = HEADER_LEN
-        .checked_add(8)?
-        .checked_add(config_len)?
-        .checked_add(8)?;
-    let flag = *bytes.get(flag_at)?;
-    let id = u64_at(flag_at + 1)?;
-    (flag == 1).then_some(id)
-}
-
 /// An id for "a new sequence" that differs from `last`.
 pub fn auto_sequence(last: Option<u64>) -> u64 {
     match last {
@@ -80,7 +61,7 @@ pub fn auto_sequence(last: Option<u64>) -> u64 {
 }
 
 /// The features as one slice plus (n, d), checked against the model's dimension.
-fn features<'a>(
+pub(crate) fn features<'a>(
     x: &'a PyReadonlyArray2<'_, f32>,
     dim: Option<usize>,
 ) -> PyResult<(&'a [f32], usize, usize)> {
@@ -211,8 +192,6 @@ type PredictArrays<'py> = (
 #[derive(Debug, Clone)]
 pub struct Model {
     gdm: Gdm,
-    /// Sequence id of the last trained sample (`None` after an episode end, replay, or none).
-    last_sequence: Option<u64>,
 }
 
 impl Model {
@@ -221,9 +200,9 @@ impl Model {
         &self.gdm
     }
 
-    fn from_gdm(gdm: Gdm) -> Model {
-        let last_sequence = trained_sequence(&gdm.to_bytes());
-        Model { gdm, last_sequence }
+    /// Wraps a model (e.g. one trained by `lgdm.run_scenario`).
+    pub fn from_gdm(gdm: Gdm) -> Model {
+        Model { gdm }
     }
 
     fn batch(
@@ -249,10 +228,7 @@ impl Model {
     fn new(config: &str, dim: usize) -> PyResult<Model> {
         let config = config_from_json(config)?;
         let gdm = Gdm::new(config, dim).map_err(errors::gdm)?;
-        Ok(Model {
-            gdm,
-            last_sequence: None,
-        })
+        Ok(Model { gdm })
     }
 
     /// Reads a model from checkpoint bytes.
@@ -323,7 +299,7 @@ impl Model {
     /// Sequence id of the last trained sample, if the next sample could continue it.
     #[getter]
     fn last_sequence(&self) -> Option<u64> {
-        self.last_sequence
+        self.gdm.current_sequence()
     }
 
     /// `epochs` passes over the samples (ending an episode after each if `end_episodes`);
@@ -344,7 +320,7 @@ impl Model {
             return Err(errors::input("epochs must be at least 1"));
         }
         let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let auto = auto_sequence(self.last_sequence);
+        let auto = auto_sequence(self.gdm.current_sequence());
         let batch = self.batch(
             n,
             instance.as_ref(),
@@ -365,11 +341,6 @@ impl Model {
             Ok(stats.expect("epochs ≥ 1"))
         });
         let stats = result.map_err(errors::gdm)?;
-        self.last_sequence = if end_episodes {
-            None
-        } else {
-            batch.sequence.last().copied()
-        };
         let out = PyDict::new(py);
         out.set_item("samples", stats.samples)?;
         out.set_item("episodic_nodes", stats.episodic_nodes)?;
@@ -436,14 +407,12 @@ impl Model {
     fn end_episode(&mut self, py: Python<'_>) {
         let gdm = &mut self.gdm;
         py.detach(|| gdm.end_episode());
-        self.last_sequence = None;
     }
 
     /// Intrinsic replay; returns `{"chains": …, "samples": …}`.
     fn replay<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let gdm = &mut self.gdm;
         let stats = py.detach(|| gdm.replay()).map_err(errors::gdm)?;
-        self.last_sequence = None;
         let out = PyDict::new(py);
         out.set_item("chains", stats.chains)?;
         out.set_item("samples", stats.samples)?;
@@ -491,7 +460,7 @@ impl Model {
         repeats: usize,
     ) -> PyResult<Vec<f64>> {
         let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let auto = auto_sequence(self.last_sequence);
+        let auto = auto_sequence(self.gdm.current_sequence());
         let batch = self.batch(n, instance.as_ref(), category.as_ref(), None, auto)?;
         let gdm = &self.gdm;
         py.detach(|| {
@@ -516,22 +485,6 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The sequence state read back from checkpoint bytes is the one the model trained last.
-    #[test]
-    fn trained_sequence_reads_the_checkpoint() {
-        let mut gdm = Gdm::new(GdmConfig::default(), 2).unwrap();
-        assert_eq!(trained_sequence(&gdm.to_bytes()), None);
-        let xs = [[0.0, 0.0], [1.0, 1.0], [0.5, 0.5]];
-        for id in [7u64, AUTO_SEQUENCE_BASE + 3, u64::MAX] {
-            let samples: Vec<Sample> = xs.iter().map(|x| Sample::labelled(x, id, 1, 2)).collect();
-            gdm.train(&samples).unwrap();
-            assert_eq!(trained_sequence(&gdm.to_bytes()), Some(id));
-        }
-        gdm.end_episode();
-        assert_eq!(trained_sequence(&gdm.to_bytes()), None);
-        assert_eq!(trained_sequence(&[0u8; 10]), None);
-    }
 
     #[test]
     fn auto_sequence_differs_from_the_last() {

@@ -25,7 +25,7 @@ def test_fit_predict_round_trip_beats_chance(objects, held_out):
     assert model.n_features_in_ == 16
     assert model.n_nodes_episodic_ >= 8
     assert model.n_nodes_semantic_ >= 4
-    instance, category, activation = model.predict(held_out["X"], held_out["sequence"])
+    instance, category, activation, _ = model.predict(held_out["X"], held_out["sequence"])
     assert instance.dtype == np.int64 and category.dtype == np.int64
     assert activation.dtype == np.float32
     assert instance.shape == category.shape == activation.shape == (len(held_out["X"]),)
@@ -66,14 +66,14 @@ def test_incremental_learning_with_new_labels():
         model.partial_fit(first["X"], first["instance"], first["category"], first["sequence"])
     model.end_episode()
     model.replay()
-    _, category, _ = model.predict(later["X"], later["sequence"])
+    category = model.predict(later["X"], later["sequence"]).category
     assert not np.isin(category, [2, 3]).any(), "labels 2 and 3 were never taught"
     for _ in range(2):
         model.partial_fit(later["X"], later["instance"], later["category"], later["sequence"])
     model.end_episode()
     model.replay()
     for data in (first, later):
-        instance, category, _ = model.predict(data["X"], data["sequence"])
+        instance, category, *_ = model.predict(data["X"], data["sequence"])
         assert np.mean(category == data["category"]) > 0.9
         assert np.mean(instance == data["instance"]) > 0.8
 
@@ -82,7 +82,7 @@ def test_labels_are_optional_and_scalar_labels_broadcast():
     data = make_objects(n_categories=2, instances_per_category=1, seed=4)
     model = lgdm.GDM(seed=0)
     model.partial_fit(data["X"])  # unlabelled: weights learn, histograms do not
-    instance, category, _ = model.predict(data["X"])
+    instance, category, *_ = model.predict(data["X"])
     assert np.all(instance == -1) and np.all(category == -1)
     for c in (0, 1):
         rows = data["category"] == c
@@ -90,7 +90,7 @@ def test_labels_are_optional_and_scalar_labels_broadcast():
     unlabelled = data["instance"].copy()
     unlabelled[::2] = -1  # -1: no label for that sample
     model.partial_fit(data["X"], instance=unlabelled, category=data["category"])
-    instance, category, _ = model.predict(data["X"], data["sequence"])
+    instance, category, *_ = model.predict(data["X"], data["sequence"])
     assert np.mean(category == data["category"]) > 0.9
     assert set(np.unique(instance)) <= {-1, 0, 1, 10, 11}
 
@@ -99,7 +99,7 @@ def test_large_label_ids_round_trip():
     data = make_objects(n_categories=2, instances_per_category=1, seed=5)
     big = np.where(data["category"] == 0, 0, 2**32 - 1)
     model = lgdm.GDM("paper_batch", seed=0).fit(data["X"], big, big, data["sequence"], epochs=2)
-    _, category, _ = model.predict(data["X"], data["sequence"])
+    category = model.predict(data["X"], data["sequence"]).category
     assert set(np.unique(category)) <= {0, 2**32 - 1}
     assert np.mean(category == big) > 0.9
 

@@ -3,6 +3,8 @@
 - :class:`GDM`: the dual-memory model (episodic + semantic Gamma-GWR memories with temporal
   context and intrinsic replay), scikit-learn style, numpy in and out.
 - :func:`config`: the full hyperparameters of a preset plus overrides.
+- :func:`run_scenario`: the paper's scenarios (batch, incremental, NI, NC, NIC) over trials on a
+  feature table — the same code and records as ``lgdm train``'s ``metrics.json``.
 - Data: :class:`Dataset` (sequences of point clouds as numpy arrays, with labels),
   :func:`good_descriptor`, :func:`good_features`, :func:`generate_dataset`,
   :func:`project_to_image` (224×224 depth / RGB-D), :func:`view_entropy`, :func:`best_view`.
@@ -17,7 +19,7 @@ Example::
     X = np.concatenate([rng.normal(c, 0.05, (40, 3)) for c in (0.0, 1.0)])
     y = np.repeat([0, 1], 40)
     model = lgdm.GDM("paper_batch", seed=0).fit(X, instance=y, category=y, epochs=3)
-    instance, category, activation = model.predict(X)
+    instance, category, activation, category_em = model.predict(X)
 """
 
 from ._data import (
@@ -37,12 +39,14 @@ from ._errors import (
     LgdmError,
     NotFittedError,
 )
-from ._gdm import GDM, PRESETS, config
+from ._experiment import SCENARIOS, run_scenario, scenario_defaults
+from ._gdm import GDM, PRESETS, Prediction, config
 from ._lgdm import __version__
 
 __all__ = [
     "GDM",
     "PRESETS",
+    "SCENARIOS",
     "CheckpointError",
     "ConfigError",
     "Dataset",
@@ -50,6 +54,7 @@ __all__ = [
     "InputError",
     "LgdmError",
     "NotFittedError",
+    "Prediction",
     "__version__",
     "best_view",
     "config",
@@ -57,5 +62,7 @@ __all__ = [
     "good_descriptor",
     "good_features",
     "project_to_image",
+    "run_scenario",
+    "scenario_defaults",
     "view_entropy",
 ]

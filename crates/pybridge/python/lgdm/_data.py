@@ -62,13 +62,16 @@ def good_descriptor(points: Any, bins: int = 15) -> np.ndarray:
 
 def good_features(
     dataset: Dataset | str | os.PathLike[str], bins: int = 15
-) -> dict[str, np.ndarray]:
+) -> dict[str, Any]:
     """GOOD features of every view of a dataset (a :class:`Dataset` or its directory), in
     collection, file and frame order, computed on all cores.
 
     Returns a dict of numpy arrays with one row per view: ``features`` (n, 3·bins²) float32 and
     int64 ``collection``, ``category``, ``instance``, ``sequence`` (unique per collection and
-    object) and ``frame``. The values are those ``lgdm train``/``lgdm eval`` use.
+    object) and ``frame``. The values are those ``lgdm train``/``lgdm eval`` use. Beside the
+    rows, what :func:`lgdm.run_scenario` needs: the manifest's ``train_collections`` and
+    ``test_collections`` (lists), the ``categories`` names, the ``dataset`` directory and the
+    ``encoder`` (``"good"``).
     """
     if not isinstance(dataset, Dataset):
         dataset = Dataset(os.fspath(dataset))

@@ -12,14 +12,14 @@ import json
 import os
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from . import _lgdm
 from ._errors import ConfigError, InputError, NotFittedError
 
-__all__ = ["GDM", "PRESETS", "config"]
+__all__ = ["GDM", "PRESETS", "Prediction", "config"]
 
 #: Names of the hyperparameter presets (``GDM(preset=...)``).
 PRESETS: tuple[str, ...] = tuple(_lgdm.PRESETS)
@@ -182,6 +182,19 @@ def _ids(value: Labels, n: int, name: str) -> np.ndarray | None:
     return np.ascontiguousarray(arr, dtype=np.int64)
 
 
+class Prediction(NamedTuple):
+    """What :meth:`GDM.predict` returns, one entry per sample (unpacks as a 4-tuple)."""
+
+    #: Instance label of the episodic memory's best node (int64; -1: the node holds none).
+    instance: np.ndarray
+    #: Category label of the semantic memory (int64; -1: none): the model's category answer.
+    category: np.ndarray
+    #: Episodic activity exp(-d) of the best node, in (0, 1] (float32).
+    activation: np.ndarray
+    #: Category label of the episodic memory's best node (int64; -1: none).
+    category_em: np.ndarray
+
+
 class GDM:
     """The Growing Dual-Memory network: lifelong recognition of object instances (episodic
     memory) and categories (semantic memory) from sequences of feature vectors.
@@ -314,16 +327,16 @@ class GDM:
 
     def predict(
         self, X: ArrayLike, sequence: Labels = None, *, no_context: bool = False
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Predicts ``(instance, category, activation)`` for each sample: the episodic memory's
-        instance label and the semantic memory's category label (int64, ``-1`` where the best
-        node holds no label) and the episodic activity exp(-d) in (0, 1] (float32).
+    ) -> Prediction:
+        """Predicts for each sample a :class:`Prediction` ``(instance, category, activation,
+        category_em)``: the episodic memory's instance label, the semantic memory's category
+        label (the model's answer), the episodic activity exp(-d) in (0, 1] and the episodic
+        memory's own category label (int64 labels, ``-1`` where the best node holds none).
         ``no_context=True`` matches on input weights only (the paper's "without temporal
         context at test time"). The model is not changed."""
         x = _features(X)
         seq = _ids(sequence, x.shape[0], "sequence")
-        instance, category, activation, _ = self._engine().predict(x, seq, no_context)
-        return instance, category, activation
+        return Prediction(*self._engine().predict(x, seq, no_context))
 
     def evaluate(
         self,

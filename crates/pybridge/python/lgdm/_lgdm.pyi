@@ -15,6 +15,8 @@ __version__: str
 AUTO_SEQUENCE_BASE: int
 #: Names of the hyperparameter presets.
 PRESETS: list[str]
+#: Names of the scenarios, in the paper's order.
+SCENARIOS: list[str]
 
 def config_json(text: str) -> str:
     """Parses a config document (JSON, optional ``"preset"`` key, any subset of fields),
@@ -154,8 +156,40 @@ class SequenceIter(Iterator[tuple[list[npt.NDArray[np.float32]], SequenceInfo]])
 def good_descriptor(points: npt.NDArray[np.float32], bins: int = 15) -> npt.NDArray[np.float32]:
     """The GOOD descriptor (3·bins² values) of an (N, 3) float32 C-contiguous cloud."""
 
-def good_features(dataset: Dataset, bins: int = 15) -> dict[str, npt.NDArray[Any]]:
-    """GOOD features of every view of a dataset with their labels."""
+def good_features(dataset: Dataset, bins: int = 15) -> dict[str, Any]:
+    """GOOD features of every view of a dataset with their labels, the manifest's train and
+    test collections, category names, dataset directory and encoder name."""
+
+def scenario_defaults(name: str) -> dict[str, Any]:
+    """A scenario's defaults: preset, replay, epochs, trials, eval_samples, jobs."""
+
+def run_scenario(
+    features_: npt.NDArray[np.float32],
+    collection: npt.NDArray[np.int64],
+    category: npt.NDArray[np.int64],
+    instance: npt.NDArray[np.int64],
+    sequence: npt.NDArray[np.int64],
+    frame: npt.NDArray[np.int64],
+    train_collections: list[int],
+    test_collections: list[int],
+    categories: list[str],
+    scenario_name: str,
+    *,
+    config: str | None = None,
+    trials: int | None = None,
+    seed: int = 0,
+    replay: bool | None = None,
+    context: bool = True,
+    epochs: int | None = None,
+    eval_every: int | None = None,
+    eval_samples: int | None = None,
+    train_samples: int = 0,
+    validate: bool = False,
+    jobs: int | None = None,
+    encoder: str = "good",
+    dataset: str = "",
+) -> tuple[str, list[Model]]:
+    """Runs a scenario over trials; ``(metrics.json text, final models)``."""
 
 def generate_dataset(
     out: str,
