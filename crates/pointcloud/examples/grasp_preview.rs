@@ -2,8 +2,7 @@
 //!
 //! `cargo run --release -p lgdm-pointcloud --example grasp_preview -- <category> <instance> <image> <out.png>`
 
-use lgdm_pointcloud::cornell::grasp_scene;
-use lgdm_pointcloud::grasp::GraspSpec;
+use lgdm_pointcloud::grasp::{GraspSpec, grasp_scene};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
 use lgdm_pointcloud::preview::grasp_preview;
 

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::{PointCloud, bounds};
-use crate::math::Pose;
+use crate::math::{Pose, rotation_axis_angle};
 
 /// One collection's augmentation. Lengths in metres, angles in radians.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -193,10 +193,7 @@ impl Augmentation {
                 let axis_angle = rng.random_range(0.0..std::f32::consts::TAU);
                 let tilt = rng.random_range(0.3 * max_tilt_rad..=max_tilt_rad);
                 ScenePlacement {
-                    tilt: Pose::rotation_axis_angle(
-                        [axis_angle.cos(), axis_angle.sin(), 0.0],
-                        tilt,
-                    ),
+                    tilt: rotation_axis_angle([axis_angle.cos(), axis_angle.sin(), 0.0], tilt),
                     ..ScenePlacement::default()
                 }
             }
@@ -251,7 +248,7 @@ impl Default for ScenePlacement {
     fn default() -> Self {
         Self {
             offset_m: [0.0; 2],
-            tilt: Pose::IDENTITY,
+            tilt: Pose::identity(),
             scale: 1.0,
         }
     }

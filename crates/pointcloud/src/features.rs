@@ -12,13 +12,12 @@
 //! ```
 
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::dataset::{Dataset, DatasetError};
 use crate::good::good_descriptor_into;
 use crate::npz::{NpyRef, NpzError, read_npz, write_npz};
-use crate::progress::Progress;
+use crate::progress::{Progress, par_map_with_progress};
 
 /// Features of many views with their labels; row `i` belongs to `collection[i]`,
 /// `category[i]`, `instance[i]`, `sequence[i]` (unique per collection × object) and `frame[i]`.
@@ -177,8 +176,8 @@ impl FeatureTable {
 }
 
 /// GOOD descriptors (`bins` per side, `3 × bins²` values) of every view of every collection, in
-/// collection, file and frame order. Collections are processed in parallel; the result does not
-/// depend on the number of threads.
+/// collection, file and frame order. Collections are processed in parallel (rayon); the result
+/// does not depend on the number of threads. `progress` is called on the calling thread.
 pub fn good_features(
     ds: &Dataset,
     bins: usize,
@@ -194,55 +193,32 @@ pub fn good_features(
     let n_coll = manifest.collections.len();
     let dim = 3 * bins * bins;
     let total = manifest.views;
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .clamp(1, n_coll.max(1));
-    let next = AtomicUsize::new(0);
     let cancel = AtomicBool::new(false);
-    let (tx, rx) = mpsc::channel::<u64>();
-    let mut parts: Vec<Option<Result<FeatureTable, DatasetError>>> =
-        (0..n_coll).map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                let tx = tx.clone();
-                let (next, cancel) = (&next, &cancel);
-                scope.spawn(move || {
-                    let mut out = Vec::new();
-                    loop {
-                        let c = next.fetch_add(1, Ordering::SeqCst);
-                        if c >= n_coll || cancel.load(Ordering::SeqCst) {
-                            break;
-                        }
-                        let r = collection_features(ds, c as u32, bins, dim, &tx, cancel);
-                        if r.is_err() {
-                            cancel.store(true, Ordering::SeqCst);
-                        }
-                        out.push((c, r));
-                    }
-                    out
-                })
-            })
-            .collect();
-        drop(tx);
-        let mut done = 0;
-        for n in rx {
+    let mut done = 0;
+    let parts = par_map_with_progress(
+        n_coll,
+        |c, tick| {
+            if cancel.load(Ordering::SeqCst) {
+                return Err(DatasetError::Cancelled);
+            }
+            let r = collection_features(ds, c as u32, bins, dim, tick, &cancel);
+            if r.is_err() {
+                cancel.store(true, Ordering::SeqCst);
+            }
+            r
+        },
+        &mut |n| {
             done += n;
             progress(Progress {
                 stage: "features",
                 done,
                 total,
             });
-        }
-        for h in handles {
-            for (c, r) in h.join().expect("feature worker panicked") {
-                parts[c] = Some(r);
-            }
-        }
-    });
+        },
+    );
     let mut table = FeatureTable::new(dim);
     let mut first_err = None;
-    for part in parts.into_iter().flatten() {
+    for part in parts {
         match part {
             Ok(t) => table.extend(t),
             Err(DatasetError::Cancelled) => {}
@@ -265,7 +241,7 @@ fn collection_features(
     c: u32,
     bins: usize,
     dim: usize,
-    tx: &mpsc::Sender<u64>,
+    tick: &dyn Fn(u64),
     cancel: &AtomicBool,
 ) -> Result<FeatureTable, DatasetError> {
     let manifest = ds.manifest();
@@ -293,7 +269,7 @@ fn collection_features(
             table.sequence.push(sequence);
             table.frame.push(f as u32);
         }
-        let _ = tx.send(seq.frames.len() as u64);
+        tick(seq.frames.len() as u64);
     }
     Ok(table)
 }

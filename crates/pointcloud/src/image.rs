@@ -10,8 +10,9 @@
 //! ```
 
 use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+
+use crate::fsutil::write_atomic;
 
 /// Errors writing or reading images.
 #[derive(Debug, thiserror::Error)]
@@ -155,18 +156,18 @@ impl RgbImage {
         text.chars().count() * 6 * scale.max(1)
     }
 
-    /// Writes the image as an 8-bit RGB PNG (temp file + rename).
+    /// Writes the image as an 8-bit RGB PNG (atomically: temp file, then rename).
     pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
         let bytes: Vec<u8> = self.data.iter().flatten().copied().collect();
         write_atomic(path, |file| {
-            let mut enc =
-                png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
+            let mut enc = png::Encoder::new(file, self.width as u32, self.height as u32);
             enc.set_color(png::ColorType::Rgb);
             enc.set_depth(png::BitDepth::Eight);
-            let mut w = enc.write_header().map_err(|e| e.to_string())?;
-            w.write_image_data(&bytes).map_err(|e| e.to_string())?;
-            w.finish().map_err(|e| e.to_string())
+            let mut w = enc.write_header().map_err(std::io::Error::other)?;
+            w.write_image_data(&bytes).map_err(std::io::Error::other)?;
+            w.finish().map_err(std::io::Error::other)
         })
+        .map_err(|e| err(path, e))
     }
 
     /// Reads an 8-bit RGB or RGBA PNG (alpha dropped).
@@ -196,22 +197,6 @@ impl RgbImage {
     }
 }
 
-fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(File) -> Result<(), String>,
-) -> Result<(), ImageError> {
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("image");
-    let tmp = path.with_file_name(format!(".{name}.tmp"));
-    let result = File::create(&tmp)
-        .map_err(|e| e.to_string())
-        .and_then(write)
-        .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
-    result.map_err(|reason| {
-        let _ = std::fs::remove_file(&tmp);
-        err(path, reason)
-    })
-}
-
 /// Writes a single-channel float32 TIFF (depth in metres, uncompressed).
 pub fn write_depth_tiff(
     path: &Path,
@@ -223,15 +208,15 @@ pub fn write_depth_tiff(
         return Err(err(path, "depth length is not width × height"));
     }
     write_atomic(path, |file| {
-        let mut enc =
-            tiff::encoder::TiffEncoder::new(BufWriter::new(file)).map_err(|e| e.to_string())?;
+        let mut enc = tiff::encoder::TiffEncoder::new(file).map_err(std::io::Error::other)?;
         enc.write_image::<tiff::encoder::colortype::Gray32Float>(
             width as u32,
             height as u32,
             depth_m,
         )
-        .map_err(|e| e.to_string())
+        .map_err(std::io::Error::other)
     })
+    .map_err(|e| err(path, e))
 }
 
 /// Reads a single-channel float32 TIFF; returns `(width, height, values)`.

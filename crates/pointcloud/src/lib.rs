@@ -4,8 +4,10 @@
 //! The pipeline of `lgdm gen-dataset`: [`objects`] (procedural household objects) or
 //! [`import`] (user meshes) → [`render`] (z-buffer RGB-D on a turntable) → [`augment`] →
 //! [`dataset`] (MCAP collections in the `foxglove.PointCloud` schema + `manifest.json`) →
-//! [`features`] (GOOD, written as `.npz`). Grasp-labelled RGB-D images in the Cornell layout
-//! come from [`grasp`] and [`cornell`]; [`projection`] makes 224×224 images of clouds.
+//! [`features`] (GOOD, written as `.npz`). [`grasp`] labels grasps from geometry, writes
+//! grasp-labelled RGB-D images in the Cornell layout and decodes the grasp network's maps;
+//! [`projection`] makes 224×224 images of clouds. Every file is written atomically (temp file,
+//! then rename); parallel work runs on rayon's pool and never changes the bytes written.
 //!
 //! Lengths are metres, angles radians; clouds are in the camera's optical frame.
 //!
@@ -21,12 +23,11 @@
 
 pub mod augment;
 pub mod cloud;
-pub mod cornell;
 pub mod dataset;
 pub mod features;
+pub(crate) mod fsutil;
 pub mod good;
 pub mod grasp;
-pub mod grasp_decode;
 pub mod image;
 pub mod import;
 pub mod math;

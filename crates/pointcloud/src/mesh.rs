@@ -10,7 +10,7 @@
 //! assert!((hi[2] - 0.1).abs() < 1e-6 && lo[2].abs() < 1e-6);
 //! ```
 
-use crate::math::{Pose, add, cross, dot, norm, normalize, scale, sub};
+use crate::math::{Pose, add, cross, dot, norm, normalize, scale, sub, transform_point};
 
 /// A triangle mesh: vertices in metres, counter-clockwise (outward) triangles, a colour each.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -74,7 +74,11 @@ impl Mesh {
     /// Returns the mesh with `pose` applied to every vertex.
     pub fn transformed(&self, pose: &Pose) -> Mesh {
         Mesh {
-            vertices: self.vertices.iter().map(|&v| pose.apply(v)).collect(),
+            vertices: self
+                .vertices
+                .iter()
+                .map(|&v| transform_point(pose, v))
+                .collect(),
             triangles: self.triangles.clone(),
             colors: self.colors.clone(),
         }

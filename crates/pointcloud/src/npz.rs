@@ -5,6 +5,14 @@
 //! one-dimensional). Reading accepts stored (uncompressed) entries only: write with
 //! `numpy.savez`, not `numpy.savez_compressed`.
 //!
+//! Why not a crate: `npyz` (0.8, feature `npz`) reads and writes `.npz`, including what
+//! `numpy.savez_compressed` writes, but on non-wasm targets it pulls `zip` 0.6 with all of that
+//! crate's default features (bzip2 and a second zstd, both C builds; AES, PBKDF2, SHA-1, HMAC;
+//! `time`) plus `pest`/`pest_derive` and `num-bigint` for parsing headers: about 60 extra
+//! crates, none of which `default-features = false` can drop. Everything this crate exchanges
+//! is written by this module (or by `numpy.savez`), a few hundred lines using only `crc32fast`;
+//! supporting compressed input is not worth that build.
+//!
 //! ```
 //! use lgdm_pointcloud::npz::{read_npz, write_npz, NpyData, NpyRef};
 //! let dir = tempfile::tempdir().unwrap();
@@ -239,20 +247,12 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpyRef<'_>)]) -> Result<(), NpzEr
     out.extend_from_slice(&(central.len() as u32).to_le_bytes());
     out.extend_from_slice(&cd_offset.to_le_bytes());
     out.extend_from_slice(&0u16.to_le_bytes());
-    let name = path
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or("out.npz");
-    let tmp = path.with_file_name(format!(".{name}.tmp"));
-    std::fs::write(&tmp, &out)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|source| {
-            let _ = std::fs::remove_file(&tmp);
-            NpzError::Io {
-                path: path.to_path_buf(),
-                source,
-            }
-        })
+    crate::fsutil::write_atomic(path, |w| std::io::Write::write_all(w, &out)).map_err(|source| {
+        NpzError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
 }
 
 fn u16_at(b: &[u8], o: usize) -> Option<u16> {

@@ -1,12 +1,13 @@
 //! Preview images for people: `contact_sheet.png` (every object, one view each, labelled) and
 //! `grasp_preview.png` (the first grasp-labelled scene, RGB and depth, rectangles drawn).
+//! The dataset generator writes both; this module does not depend on `dataset`.
 
 use std::path::Path;
 
-use crate::cornell::{draw_rectangles, grasp_scene};
-use crate::dataset::{DatasetError, DatasetSpec};
+use crate::grasp::GraspSpec;
+use crate::grasp::cornell::{GraspScene, OBJECT_LABEL, draw_rectangles, grasp_scene};
 use crate::image::{ImageError, RgbImage, depth_to_gray};
-use crate::math::Pose;
+use crate::math::{Pose, look_at};
 use crate::objects::ObjectModel;
 use crate::progress::Progress;
 use crate::render::{Camera, Intrinsics, RenderItem, render};
@@ -21,13 +22,6 @@ const TILE_H: usize = 160;
 const LABEL_H: usize = 16;
 const SHEET_BG: [u8; 3] = [32, 34, 38];
 const TILE_BG: [u8; 3] = [58, 62, 70];
-
-fn image_err(e: ImageError) -> DatasetError {
-    DatasetError::Image {
-        path: e.path,
-        reason: e.reason,
-    }
-}
 
 /// One view of an object filling a `width × height` tile: camera at 30° elevation, distance
 /// chosen so the bounding sphere fits.
@@ -54,13 +48,13 @@ pub fn object_thumbnail(object: &ObjectModel, width: usize, height: usize) -> Rg
     ];
     let camera = Camera::new(
         Intrinsics::centered(width as u32, height as u32, focal),
-        Pose::look_at(eye, centre, [0.0, 0.0, 1.0]),
+        look_at(eye, centre, [0.0, 0.0, 1.0]),
     );
     let frame = render(
         &camera,
         &[RenderItem {
             mesh: &object.mesh,
-            world_from_object: Pose::IDENTITY,
+            world_from_object: Pose::identity(),
             label: 1,
         }],
     );
@@ -120,34 +114,28 @@ pub fn contact_sheet(objects: &[ObjectModel], title: &str) -> RgbImage {
     sheet
 }
 
-/// Writes the preview PNGs; returns their paths relative to `out_dir`.
+/// Writes the preview PNGs of a dataset made with `seed` and the grasp parameters `grasp` into
+/// `out_dir`; returns their paths relative to `out_dir`.
 pub fn write_previews(
-    spec: &DatasetSpec,
     objects: &[ObjectModel],
+    seed: u64,
+    grasp: &GraspSpec,
     out_dir: &Path,
     progress: &mut dyn FnMut(Progress),
-) -> Result<Vec<String>, DatasetError> {
+) -> Result<Vec<String>, ImageError> {
     if objects.is_empty() {
         return Ok(Vec::new());
     }
-    let title = format!(
-        "lgdm dataset: {} objects, seed {}",
-        objects.len(),
-        spec.seed
-    );
-    contact_sheet(objects, &title)
-        .write_png(&out_dir.join(CONTACT_SHEET))
-        .map_err(image_err)?;
+    let title = format!("lgdm dataset: {} objects, seed {}", objects.len(), seed);
+    contact_sheet(objects, &title).write_png(&out_dir.join(CONTACT_SHEET))?;
     progress(Progress {
         stage: "previews",
         done: 1,
         total: 2,
     });
     // The first grasp scene (the same one the Cornell export wrote as pcd0100).
-    let scene = grasp_scene(&spec.grasp, spec.seed, 0, &objects[0]);
-    grasp_preview(&scene, &objects[0].name)
-        .write_png(&out_dir.join(GRASP_PREVIEW))
-        .map_err(image_err)?;
+    let scene = grasp_scene(grasp, seed, 0, &objects[0]);
+    grasp_preview(&scene, &objects[0].name).write_png(&out_dir.join(GRASP_PREVIEW))?;
     progress(Progress {
         stage: "previews",
         done: 2,
@@ -158,7 +146,7 @@ pub fn write_previews(
 
 /// RGB (left) and depth (right) of a grasp scene with its rectangles drawn, cropped around the
 /// object and enlarged 2×.
-pub fn grasp_preview(scene: &crate::cornell::GraspScene, name: &str) -> RgbImage {
+pub fn grasp_preview(scene: &GraspScene, name: &str) -> RgbImage {
     let f = &scene.frame;
     let (w, h) = (f.width as usize, f.height as usize);
     let (pos, neg) = (scene.positives(), scene.negatives());
@@ -169,7 +157,7 @@ pub fn grasp_preview(scene: &crate::cornell::GraspScene, name: &str) -> RgbImage
     // Crop a square around the object's pixels.
     let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
     for (i, &l) in f.label.iter().enumerate() {
-        if l == crate::cornell::OBJECT_LABEL {
+        if l == OBJECT_LABEL {
             let (x, y) = (i % w, i / w);
             (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
         }

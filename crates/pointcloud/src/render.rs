@@ -6,12 +6,12 @@
 //! `((u - cx) / fx, (v - cy) / fy, 1)`.
 //!
 //! ```
-//! use lgdm_pointcloud::math::Pose;
+//! use lgdm_pointcloud::math::{Pose, look_at};
 //! use lgdm_pointcloud::mesh::Mesh;
 //! use lgdm_pointcloud::render::{render, Camera, Intrinsics, RenderItem};
-//! let camera = Camera::new(Intrinsics::kinect_qvga(), Pose::look_at([0.0, -0.8, 0.4], [0.0, 0.0, 0.05], [0.0, 0.0, 1.0]));
+//! let camera = Camera::new(Intrinsics::kinect_qvga(), look_at([0.0, -0.8, 0.4], [0.0, 0.0, 0.05], [0.0, 0.0, 1.0]));
 //! let mesh = Mesh::cuboid([0.0, 0.0, 0.05], [0.1, 0.1, 0.1], [200, 0, 0]);
-//! let frame = render(&camera, &[RenderItem { mesh: &mesh, world_from_object: Pose::IDENTITY, label: 2 }]);
+//! let frame = render(&camera, &[RenderItem { mesh: &mesh, world_from_object: Pose::identity(), label: 2 }]);
 //! let cloud = frame.backproject(&camera, 2);
 //! assert!(cloud.len() > 100);
 //! ```
@@ -19,7 +19,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::PointCloud;
-use crate::math::{Pose, cross, dot, normalize, sub};
+use crate::math::{Pose, cross, dot, normalize, rotate_vector, sub, transform_point};
 use crate::mesh::Mesh;
 
 /// Pinhole intrinsics (pixels).
@@ -86,6 +86,7 @@ pub struct Camera {
     /// Pinhole intrinsics.
     pub intrinsics: Intrinsics,
     /// Pose of the camera in the world (optical frame: x right, y down, z forward).
+    #[serde(with = "crate::math::pose_serde")]
     pub world_from_camera: Pose,
 }
 
@@ -150,13 +151,13 @@ pub fn render(camera: &Camera, items: &[RenderItem<'_>]) -> RgbdFrame {
     let camera_from_world = camera.world_from_camera.inverse();
     // Light: from above and slightly behind the camera (world frame), expressed in camera frame.
     let light_world = normalize([0.3, -0.6, 1.0]);
-    let light = camera_from_world.rotate(light_world);
+    let light = rotate_vector(&camera_from_world, light_world);
     let mut projected: Vec<([f32; 3], [f32; 2])> = Vec::new();
     for item in items {
-        let camera_from_object = camera_from_world.compose(&item.world_from_object);
+        let camera_from_object = camera_from_world * item.world_from_object;
         projected.clear();
         projected.extend(item.mesh.vertices.iter().map(|&v| {
-            let p = camera_from_object.apply(v);
+            let p = transform_point(&camera_from_object, v);
             let uv = if p[2] > NEAR_M {
                 [k.fx * p[0] / p[2] + k.cx, k.fy * p[1] / p[2] + k.cy]
             } else {
@@ -280,14 +281,14 @@ mod tests {
         // target on +z, "up" = -y so that the optical frame equals the world frame.
         Camera::new(
             Intrinsics::kinect_qvga(),
-            Pose::look_at([0.0; 3], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
+            crate::math::look_at([0.0; 3], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
         )
     }
 
     #[test]
     fn optical_frame_equals_world_for_front_camera() {
         let c = front_camera();
-        let p = c.world_from_camera.apply([0.1, 0.2, 0.3]);
+        let p = transform_point(&c.world_from_camera, [0.1, 0.2, 0.3]);
         assert!(
             (p[0] - 0.1).abs() < 1e-6 && (p[1] - 0.2).abs() < 1e-6 && (p[2] - 0.3).abs() < 1e-6
         );
@@ -310,7 +311,7 @@ mod tests {
             &c,
             &[RenderItem {
                 mesh: &quad,
-                world_from_object: Pose::IDENTITY,
+                world_from_object: Pose::identity(),
                 label: 1,
             }],
         );

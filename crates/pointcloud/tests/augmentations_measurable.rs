@@ -7,6 +7,7 @@ use lgdm_pointcloud::augment::{
     Augmentation, add_outliers, dropout, gaussian_noise, occlude, voxel_downsample,
 };
 use lgdm_pointcloud::dataset::{DatasetSpec, Split, standard_collections};
+use lgdm_pointcloud::math::rotate_vector;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -148,7 +149,7 @@ fn scene_augmentations_move_tilt_and_scale() {
         assert!((0.8..=1.2).contains(&p.scale));
         let p = Augmentation::Rotation { max_tilt_rad: 0.4 }.scene_placement(&mut rng);
         // Tilt angle from the rotation of the z axis.
-        let z = p.tilt.rotate([0.0, 0.0, 1.0]);
+        let z = rotate_vector(&p.tilt, [0.0, 0.0, 1.0]);
         let tilt = z[2].clamp(-1.0, 1.0).acos();
         assert!(tilt > 0.1 && tilt <= 0.4 + 1e-4, "tilt {tilt}");
     }

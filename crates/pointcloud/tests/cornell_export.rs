@@ -1,11 +1,9 @@
 //! The Cornell export re-reads to the same rectangles; images have the Cornell layout (RGB PNG,
 //! float32 depth TIFF in metres); positives are antipodal grasps within the gripper's opening.
 
-use lgdm_pointcloud::cornell::{
-    GraspImageInfo, cornell_prefix, grasp_scene, read_rectangles, write_rectangles,
-};
-use lgdm_pointcloud::dataset::{
-    DatasetError, DatasetSpec, generate, load_objects, standard_collections,
+use lgdm_pointcloud::dataset::{DatasetSpec, generate, load_objects, standard_collections};
+use lgdm_pointcloud::grasp::cornell::{
+    CornellError, GraspImageInfo, cornell_prefix, grasp_scene, read_rectangles, write_rectangles,
 };
 use lgdm_pointcloud::grasp::{GraspRectangle, GraspVerdict};
 use lgdm_pointcloud::image::{RgbImage, read_depth_tiff};
@@ -99,12 +97,12 @@ fn rectangle_text_round_trip_and_bad_text() {
     ] {
         std::fs::write(&path, bad).unwrap();
         assert!(
-            matches!(read_rectangles(&path), Err(DatasetError::Corrupt { .. })),
+            matches!(read_rectangles(&path), Err(CornellError::Rectangles { .. })),
             "{bad:?}"
         );
     }
     assert!(matches!(
         read_rectangles(&dir.path().join("missing.txt")),
-        Err(DatasetError::Io { .. })
+        Err(CornellError::Io { .. })
     ));
 }

@@ -2,7 +2,7 @@
 //! does not change under rigid motion of the input or with the number of points.
 
 use lgdm_pointcloud::good::good_descriptor;
-use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::math::{rotation_axis_angle, transform_point, translation};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -64,16 +64,12 @@ fn invariant_to_rigid_motion() {
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
         ];
-        let pose = Pose::translation([
+        let pose = translation([
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
             rng.random_range(0.5..2.0),
-        ])
-        .compose(&Pose::rotation_axis_angle(
-            axis,
-            rng.random_range(0.0..std::f32::consts::TAU),
-        ));
-        let moved: Vec<[f32; 3]> = pts.iter().map(|&p| pose.apply(p)).collect();
+        ]) * rotation_axis_angle(axis, rng.random_range(0.0..std::f32::consts::TAU));
+        let moved: Vec<[f32; 3]> = pts.iter().map(|&p| transform_point(&pose, p)).collect();
         let d = good_descriptor(&moved, 15).unwrap();
         // Identical up to points that float rounding moves across a bin edge.
         assert!(

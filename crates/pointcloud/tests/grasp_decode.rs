@@ -4,10 +4,11 @@
 //! model, and bad input is a typed error, never a panic.
 
 use lgdm_pointcloud::grasp::GraspRectangle;
-use lgdm_pointcloud::grasp_decode::{
+use lgdm_pointcloud::grasp::decode::{
     DecodedGrasp, GraspDecodeError, GraspDecodeParams, GraspMaps, InputCrop, WIDTH_SCALE_PX,
     angle_difference, decode_grasps, grasp_angle, grasp_maps, grasp_pose, wrap_angle,
 };
+use lgdm_pointcloud::math::{rotate_vector, transform_point};
 use lgdm_pointcloud::render::Intrinsics;
 
 /// A rectangle in train_ae's parametrisation: θ in degrees counter-clockwise on screen.
@@ -447,13 +448,14 @@ fn pixel_to_camera_follows_the_pinhole_model() {
 
     // The gripper frame: origin at the grasp, z along the approach, right-handed.
     let t = p.camera_from_grasp();
-    assert!(close(t.apply([0.0; 3]), p.position_m, 1e-7));
-    assert!(close(t.rotate([0.0, 0.0, 1.0]), p.approach, 1e-6));
-    assert!(close(t.rotate([1.0, 0.0, 0.0]), p.closing_axis, 1e-6));
-    let r = t.rotation;
-    let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
-        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+    assert!(close(transform_point(&t, [0.0; 3]), p.position_m, 1e-7));
+    assert!(close(rotate_vector(&t, [0.0, 0.0, 1.0]), p.approach, 1e-6));
+    assert!(close(
+        rotate_vector(&t, [1.0, 0.0, 0.0]),
+        p.closing_axis,
+        1e-6
+    ));
+    let det = t.rotation.matrix().determinant();
     assert!((det - 1.0).abs() < 1e-5);
 }
 

@@ -3,7 +3,7 @@
 
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::augment::occlude;
-use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::math::{look_at, rotation_z};
 use lgdm_pointcloud::objects::procedural_object;
 use lgdm_pointcloud::projection::{ProjectionParams, best_view, project_to_image, view_entropy};
 use lgdm_pointcloud::render::{Camera, Intrinsics, RenderItem, render};
@@ -12,13 +12,13 @@ fn view_of(category: &str, yaw: f32) -> PointCloud {
     let mesh = procedural_object(category, 0, 1).unwrap();
     let camera = Camera::new(
         Intrinsics::kinect_qvga(),
-        Pose::look_at([0.0, -0.65, 0.45], [0.0, 0.0, 0.08], [0.0, 0.0, 1.0]),
+        look_at([0.0, -0.65, 0.45], [0.0, 0.0, 0.08], [0.0, 0.0, 1.0]),
     );
     let f = render(
         &camera,
         &[RenderItem {
             mesh: &mesh,
-            world_from_object: Pose::rotation_z(yaw),
+            world_from_object: rotation_z(yaw),
             label: 2,
         }],
     );

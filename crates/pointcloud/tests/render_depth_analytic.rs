@@ -1,7 +1,7 @@
 //! Rendering a primitive at a known pose gives the analytically expected depth at chosen
 //! pixels, and depth → cloud → depth is a round trip.
 
-use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::math::{Pose, look_at, rotation_axis_angle, rotation_z, translation};
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::render::{Camera, Intrinsics, RenderItem, depth_from_cloud, render};
 
@@ -9,7 +9,7 @@ use lgdm_pointcloud::render::{Camera, Intrinsics, RenderItem, depth_from_cloud, 
 fn camera() -> Camera {
     Camera::new(
         Intrinsics::kinect_vga(),
-        Pose::look_at([0.0; 3], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
+        look_at([0.0; 3], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
     )
 }
 
@@ -25,7 +25,7 @@ fn box_front_face_depth_is_exact() {
     // A 0.2 m cube centred 0.9 m in front of the camera, rotated 30° about the optical axis:
     // its front face is the plane z = 0.8 whatever the in-plane rotation.
     let cube = Mesh::cuboid([0.0; 3], [0.2, 0.2, 0.2], [200, 50, 50]);
-    let pose = Pose::translation([0.0, 0.0, 0.9]).compose(&Pose::rotation_z(0.5));
+    let pose = translation([0.0, 0.0, 0.9]) * rotation_z(0.5);
     let cam = camera();
     let f = render(
         &cam,
@@ -90,7 +90,7 @@ fn tilted_plane_depth_matches_ray_intersection() {
         &cam,
         &[RenderItem {
             mesh: &quad,
-            world_from_object: Pose::IDENTITY,
+            world_from_object: Pose::identity(),
             label: 1,
         }],
     );
@@ -128,7 +128,7 @@ fn sphere_depth_within_tessellation_error() {
         &cam,
         &[RenderItem {
             mesh: &sphere,
-            world_from_object: Pose::translation([0.0, 0.0, 1.0]),
+            world_from_object: translation([0.0, 0.0, 1.0]),
             label: 1,
         }],
     );
@@ -152,8 +152,7 @@ fn sphere_depth_within_tessellation_error() {
 #[test]
 fn depth_cloud_depth_round_trip() {
     let cube = Mesh::cuboid([0.0, 0.0, 0.0], [0.15, 0.1, 0.12], [10, 200, 10]);
-    let pose = Pose::translation([0.02, -0.01, 0.7])
-        .compose(&Pose::rotation_axis_angle([1.0, 1.0, 0.2], 0.6));
+    let pose = translation([0.02, -0.01, 0.7]) * rotation_axis_angle([1.0, 1.0, 0.2], 0.6);
     let cam = camera();
     let f = render(
         &cam,

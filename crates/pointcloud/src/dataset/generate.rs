@@ -3,19 +3,20 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::mcap_io::{ChannelLabels, CollectionWriter};
 use super::{
-    CollectionInfo, DatasetError, DatasetSpec, FORMAT_NAME, FORMAT_VERSION, InstanceInfo,
-    MANIFEST_FILE, Manifest, POINT_CLOUD_FRAME_ID, PointCloud, Progress,
+    CollectionInfo, DatasetError, DatasetSpec, FORMAT_NAME, FORMAT_VERSION, GraspSetInfo,
+    InstanceInfo, MANIFEST_FILE, Manifest, POINT_CLOUD_FRAME_ID, PointCloud, Progress,
 };
 use crate::augment::{Augmentation, subsample};
-use crate::math::{Pose, derive_seed};
+use crate::fsutil::write_json_atomic;
+use crate::grasp::{CornellExport, export_cornell};
+use crate::math::{Pose, derive_seed, rotation_z, translation};
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, procedural_library, rest_on_table};
 use crate::render::{Camera, RenderItem, render};
@@ -76,7 +77,9 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
 /// Generates the dataset `spec` describes into `out_dir` (created if needed) and returns its
 /// manifest. Collection files are written under temporary names and renamed when complete;
 /// the manifest is written last, so a failed run never leaves a half-written collection or a
-/// manifest that points at missing data.
+/// manifest that points at missing data. Collections and grasp images are made in parallel
+/// (rayon); the bytes do not depend on the number of threads. `progress` is called on the
+/// calling thread.
 pub fn generate(
     spec: &DatasetSpec,
     out_dir: &Path,
@@ -98,62 +101,44 @@ pub fn generate(
     std::fs::create_dir_all(&collections_dir).map_err(|e| DatasetError::io(&collections_dir, e))?;
     let camera = spec.camera.camera();
 
-    // Collections in parallel (one file per worker at a time); progress flows back over a channel.
+    // Collections in parallel, one file each; progress is reported on this thread.
     let n_coll = spec.collections.len();
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .clamp(1, n_coll);
-    let next = AtomicUsize::new(0);
     let cancel = AtomicBool::new(false);
     let total_views = spec.views(objects.len());
-    let (tx, rx) = mpsc::channel::<u64>();
-    let mut results: Vec<Option<Result<u64, DatasetError>>> = (0..n_coll).map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                let tx = tx.clone();
-                let (next, cancel, objects, instances, categories) =
-                    (&next, &cancel, &objects, &instances, &categories);
-                scope.spawn(move || {
-                    let mut done = Vec::new();
-                    loop {
-                        let c = next.fetch_add(1, Ordering::SeqCst);
-                        if c >= n_coll {
-                            break;
-                        }
-                        let r = write_collection(
-                            spec, c, objects, instances, categories, &camera, out_dir, cancel, &tx,
-                        );
-                        if r.is_err() {
-                            cancel.store(true, Ordering::SeqCst);
-                        }
-                        done.push((c, r));
-                    }
-                    done
-                })
-            })
-            .collect();
-        drop(tx);
-        let mut views = 0u64;
-        for n in rx {
+    let mut views = 0u64;
+    let results = crate::progress::par_map_with_progress(
+        n_coll,
+        |c, tick| {
+            let r = write_collection(
+                spec,
+                c,
+                &objects,
+                &instances,
+                &categories,
+                &camera,
+                out_dir,
+                &cancel,
+                tick,
+            );
+            if r.is_err() {
+                cancel.store(true, Ordering::SeqCst);
+            }
+            r
+        },
+        &mut |n| {
             views += n;
             progress(Progress {
                 stage: "views",
                 done: views,
                 total: total_views,
             });
-        }
-        for h in handles {
-            for (c, r) in h.join().expect("collection worker panicked") {
-                results[c] = Some(r);
-            }
-        }
-    });
+        },
+    );
     // Report the first real error (not a cancellation caused by it).
     let mut sizes = Vec::with_capacity(n_coll);
     let mut first_err = None;
     for r in results {
-        match r.expect("every collection was attempted") {
+        match r {
             Ok(bytes) => sizes.push(bytes),
             Err(DatasetError::Cancelled) => {}
             Err(e) => {
@@ -168,9 +153,9 @@ pub fn generate(
         return Err(DatasetError::Cancelled);
     }
 
-    let grasp = crate::cornell::export_grasp_set(spec, &objects, &instances, out_dir, progress)?;
+    let grasp = export_grasp_set(spec, &objects, &instances, out_dir, progress)?;
     let previews = if spec.previews {
-        crate::preview::write_previews(spec, &objects, out_dir, progress)?
+        crate::preview::write_previews(&objects, spec.seed, &spec.grasp, out_dir, progress)?
     } else {
         Vec::new()
     };
@@ -209,47 +194,47 @@ pub fn generate(
         previews,
         spec: spec.clone(),
     };
-    write_json_atomic(&out_dir.join(MANIFEST_FILE), &manifest)?;
+    let manifest_path = out_dir.join(MANIFEST_FILE);
+    write_json_atomic(&manifest_path, &manifest)
+        .map_err(|e| DatasetError::io(&manifest_path, e))?;
     Ok(manifest)
 }
 
-/// Writes pretty JSON through a temp file renamed into place.
-pub(crate) fn write_json_atomic<T: serde::Serialize>(
-    path: &Path,
-    value: &T,
-) -> Result<(), DatasetError> {
-    write_atomic(path, |w| {
-        use std::io::Write;
-        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
-        w.write_all(b"\n")
-    })
+/// Exports `spec.grasp_images` grasp-labelled images into `<out_dir>/grasp` in the Cornell
+/// layout (cycling through the objects), or nothing when it is 0.
+fn export_grasp_set(
+    spec: &DatasetSpec,
+    objects: &[ObjectModel],
+    instances: &[InstanceInfo],
+    out_dir: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Option<GraspSetInfo>, DatasetError> {
+    if spec.grasp_images == 0 || objects.is_empty() {
+        return Ok(None);
+    }
+    let categories: Vec<u32> = instances.iter().map(|i| i.category).collect();
+    let export = CornellExport {
+        images: spec.grasp_images,
+        seed: spec.seed,
+        grasp: &spec.grasp,
+    };
+    export_cornell(
+        &out_dir.join("grasp"),
+        &export,
+        objects,
+        &categories,
+        progress,
+    )?;
+    Ok(Some(GraspSetInfo {
+        dir: "grasp".into(),
+        images: spec.grasp_images,
+        index: format!("grasp/{}", crate::grasp::cornell::INDEX_FILE),
+    }))
 }
 
 /// Relative path of collection `index`'s file.
 pub(crate) fn collection_file(index: usize, name: &str) -> String {
     format!("collections/c{index:02}_{name}.mcap")
-}
-
-/// Writes `path` through a temp file in the same directory and renames it into place.
-pub(crate) fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), DatasetError> {
-    use std::io::Write;
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
-    let tmp = path.with_file_name(format!(".{name}.tmp"));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(file);
-        write(&mut w)?;
-        w.flush()?;
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        DatasetError::io(path, e)
-    })
 }
 
 /// The object mesh as a scene augmentation places it: scaled, tilted, re-rested on the table.
@@ -260,7 +245,7 @@ pub(crate) fn placed_mesh(
     rng: &mut ChaCha8Rng,
 ) -> (Mesh, [f32; 2]) {
     let placement = augmentation.scene_placement(rng);
-    let mut placed = if placement.tilt != Pose::IDENTITY {
+    let mut placed = if placement.tilt != Pose::identity() {
         mesh.transformed(&placement.tilt)
     } else {
         mesh.clone()
@@ -283,7 +268,7 @@ fn write_collection(
     camera: &Camera,
     out_dir: &Path,
     cancel: &AtomicBool,
-    tx: &mpsc::Sender<u64>,
+    tick: &dyn Fn(u64),
 ) -> Result<u64, DatasetError> {
     let coll = &spec.collections[c];
     let path = out_dir.join(collection_file(c, &coll.name));
@@ -326,7 +311,7 @@ fn write_collection(
             if let Some(e) = frame_err {
                 return Err(e);
             }
-            let _ = tx.send(spec.frames_per_sequence as u64);
+            tick(spec.frames_per_sequence as u64);
         }
         Ok(())
     })();
@@ -370,10 +355,10 @@ pub(crate) fn render_sequence(
     let start = rng.random_range(0.0..std::f32::consts::TAU);
     let duration_s = spec.frames_per_sequence as f32 / spec.fps;
     let omega = std::f32::consts::TAU * spec.revolutions_per_sequence / duration_s;
-    let on_turntable = Pose::translation([offset[0], offset[1], 0.0]);
+    let on_turntable = translation([offset[0], offset[1], 0.0]);
     for f in 0..spec.frames_per_sequence {
         let t = f as f32 / spec.fps;
-        let world_from_object = Pose::rotation_z(start + omega * t).compose(&on_turntable);
+        let world_from_object = rotation_z(start + omega * t) * on_turntable;
         let frame = render(
             camera,
             &[RenderItem {

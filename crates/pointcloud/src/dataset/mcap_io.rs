@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufWriter, Read};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use foxglove::Encode;
@@ -14,6 +14,7 @@ use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOp
 use prost::Message as _;
 
 use super::{DatasetError, Manifest, PointCloud, Sequence};
+use crate::fsutil::AtomicFile;
 
 /// `frame_id` of every point cloud: the turntable camera's optical frame.
 pub const POINT_CLOUD_FRAME_ID: &str = "camera_optical";
@@ -189,11 +190,12 @@ impl ChannelLabels {
     }
 }
 
-/// Writes one collection file: a temp file that becomes `path` only on [`finish`].
+/// Writes one collection file: a temp file that becomes `path` only on
+/// [`CollectionWriter::finish`]; dropped or [abandoned](CollectionWriter::abandon) before, it
+/// is removed.
 pub(crate) struct CollectionWriter {
-    writer: mcap::Writer<BufWriter<File>>,
+    writer: mcap::Writer<AtomicFile>,
     schema_id: u16,
-    tmp: PathBuf,
     path: PathBuf,
     nanos_per_frame: u64,
 }
@@ -204,21 +206,17 @@ impl CollectionWriter {
         fps: f32,
         metadata: BTreeMap<String, String>,
     ) -> Result<Self, DatasetError> {
-        let name = path
-            .file_name()
-            .and_then(|n| n.to_str())
-            .unwrap_or("collection.mcap");
-        let tmp = path.with_file_name(format!(".{name}.tmp"));
-        let file = File::create(&tmp).map_err(|e| DatasetError::io(&tmp, e))?;
+        let file =
+            AtomicFile::with_capacity(path, 1 << 20).map_err(|e| DatasetError::io(path, e))?;
         let mcap_err = |e: mcap::McapError| DatasetError::Corrupt {
-            path: tmp.clone(),
+            path: path.to_path_buf(),
             reason: format!("writing MCAP: {e}"),
         };
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .compression_threads(0)
             .library(concat!("lgdm-pointcloud/", env!("CARGO_PKG_VERSION")))
-            .create(BufWriter::with_capacity(1 << 20, file))
+            .create(file)
             .map_err(mcap_err)?;
         let (name, encoding, data) = point_cloud_schema();
         let schema_id = writer
@@ -233,7 +231,6 @@ impl CollectionWriter {
         Ok(Self {
             writer,
             schema_id,
-            tmp: tmp.clone(),
             path: path.to_path_buf(),
             nanos_per_frame: (1e9 / f64::from(fps)).round() as u64,
         })
@@ -241,7 +238,7 @@ impl CollectionWriter {
 
     fn err(&self, e: mcap::McapError) -> DatasetError {
         DatasetError::Corrupt {
-            path: self.tmp.clone(),
+            path: self.path.clone(),
             reason: format!("writing MCAP: {e}"),
         }
     }
@@ -285,26 +282,15 @@ impl CollectionWriter {
     /// Finishes the file and renames it into place; returns its size in bytes.
     pub fn finish(mut self) -> Result<u64, DatasetError> {
         self.writer.finish().map_err(|e| self.err(e))?;
-        let buf = self.writer.into_inner();
-        let file = buf
+        self.writer
             .into_inner()
-            .map_err(|e| DatasetError::io(&self.tmp, e.into_error()))?;
-        file.sync_all()
-            .map_err(|e| DatasetError::io(&self.tmp, e))?;
-        let bytes = file
-            .metadata()
-            .map_err(|e| DatasetError::io(&self.tmp, e))?
-            .len();
-        drop(file);
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| DatasetError::io(&self.path, e))?;
-        Ok(bytes)
+            .commit()
+            .map_err(|e| DatasetError::io(&self.path, e))
     }
 
     /// Removes the temp file (after a failure).
     pub fn abandon(self) {
-        let tmp = self.tmp.clone();
         drop(self);
-        let _ = std::fs::remove_file(tmp);
     }
 }
 

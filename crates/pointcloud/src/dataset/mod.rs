@@ -38,7 +38,6 @@ use crate::augment::Augmentation;
 pub use crate::cloud::PointCloud;
 pub use crate::progress::Progress;
 use crate::render::Camera;
-pub(crate) use generate::write_json_atomic;
 pub use generate::{LoadedObjects, generate, load_objects, render_views};
 pub use mcap_io::{
     POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud,
@@ -143,6 +142,27 @@ impl DatasetError {
         DatasetError::Io {
             path: path.into(),
             source,
+        }
+    }
+}
+
+impl From<crate::image::ImageError> for DatasetError {
+    fn from(e: crate::image::ImageError) -> Self {
+        DatasetError::Image {
+            path: e.path,
+            reason: e.reason,
+        }
+    }
+}
+
+/// The grasp export's errors become the dataset's variants with the same message.
+impl From<crate::grasp::CornellError> for DatasetError {
+    fn from(e: crate::grasp::CornellError) -> Self {
+        use crate::grasp::CornellError as C;
+        match e {
+            C::Io { path, source } => DatasetError::Io { path, source },
+            C::Image { path, reason } => DatasetError::Image { path, reason },
+            C::Rectangles { path, reason } => DatasetError::Corrupt { path, reason },
         }
     }
 }

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::DatasetError;
 use crate::augment::Augmentation;
 use crate::grasp::GraspSpec;
-use crate::math::Pose;
+use crate::math::look_at;
 use crate::objects::CATEGORIES;
 use crate::render::{Camera, Intrinsics};
 
@@ -85,7 +85,7 @@ impl CameraSpec {
         ];
         Camera::new(
             Intrinsics::centered(self.width, self.height, self.focal_px),
-            Pose::look_at(eye, [0.0, 0.0, self.target_height_m], [0.0, 0.0, 1.0]),
+            look_at(eye, [0.0, 0.0, self.target_height_m], [0.0, 0.0, 1.0]),
         )
     }
 }
@@ -347,7 +347,7 @@ impl DatasetSpec {
         if self.max_points_per_view < 16 {
             return bad("max_points_per_view", "must be at least 16".into());
         }
-        if self.grasp_images > 9_899 {
+        if self.grasp_images > crate::grasp::cornell::MAX_IMAGES {
             return bad(
                 "grasp_images",
                 "at most 9899 (Cornell numbering pcd0100..pcd9998)".into(),

@@ -33,7 +33,7 @@
 //!
 //! ```
 //! use lgdm_pointcloud::grasp::GraspRectangle;
-//! use lgdm_pointcloud::grasp_decode::{
+//! use lgdm_pointcloud::grasp::decode::{
 //!     GraspDecodeParams, InputCrop, decode_grasps, grasp_maps, grasp_pose,
 //! };
 //! use lgdm_pointcloud::render::Intrinsics;
@@ -58,8 +58,8 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 use serde::{Deserialize, Serialize};
 
-use crate::grasp::GraspRectangle;
-use crate::math::{Pose, cross, dot, norm, normalize, scale, sub};
+use super::label::GraspRectangle;
+use crate::math::{Pose, cross, dot, norm, normalize, pose_from_columns, scale, sub};
 use crate::render::Intrinsics;
 
 /// Opening width (pixels at the network input resolution) that maps to 1.0 in the width map
@@ -490,10 +490,7 @@ impl GraspPose {
         let x = self.closing_axis;
         let z = self.approach;
         let y = cross(z, x);
-        Pose {
-            rotation: [[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]],
-            translation: self.position_m,
-        }
+        pose_from_columns([x, y, z], self.position_m)
     }
 }
 

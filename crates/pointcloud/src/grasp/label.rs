@@ -1,4 +1,5 @@
-//! Antipodal parallel-jaw grasp rectangles computed from the object's geometry.
+//! Grasp labelling: antipodal parallel-jaw grasp rectangles computed from the object's
+//! geometry.
 //!
 //! For a top-down RGB-D image of an object on a table, candidates are sampled as (pixel on the
 //! object, opening angle every 15°). Each is tested on the mesh itself: the grasp centre lies
@@ -23,7 +24,7 @@
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
-use crate::math::{Pose, add, cross, dot, normalize, scale, sub};
+use crate::math::{add, cross, dot, normalize, scale, sub, transform_point};
 use crate::mesh::Mesh;
 use crate::render::{Camera, RgbdFrame};
 
@@ -323,7 +324,7 @@ pub fn synthesize_grasps<R: Rng + ?Sized>(
     }
     let k = camera.intrinsics;
     let world_from_camera = camera.world_from_camera;
-    let camera_from_world: Pose = world_from_camera.inverse();
+    let camera_from_world = world_from_camera.inverse();
     let w = frame.width as usize;
     let (mut positives, mut negatives) = (0usize, 0usize);
     'pixels: for _ in 0..spec.candidates_per_image {
@@ -333,13 +334,16 @@ pub fn synthesize_grasps<R: Rng + ?Sized>(
         let i = object_pixels[rng.random_range(0..object_pixels.len())];
         let (u, v) = ((i % w) as f32, (i / w) as f32);
         let z = frame.depth_m[i];
-        let top = world_from_camera.apply(k.unproject(u, v, z));
+        let top = transform_point(&world_from_camera, k.unproject(u, v, z));
         let phase = rng.random_range(0.0..ANGLE_STEP);
         for step in 0..12 {
             let angle = phase + step as f32 * ANGLE_STEP;
             // Opening axis: the image direction at `angle`, as a horizontal world direction.
             let (s, cs) = angle.sin_cos();
-            let p2 = world_from_camera.apply(k.unproject(u + 10.0 * cs, v + 10.0 * s, z));
+            let p2 = transform_point(
+                &world_from_camera,
+                k.unproject(u + 10.0 * cs, v + 10.0 * s, z),
+            );
             let axis = normalize(sub(p2, top));
             let (verdict, opening, center) = evaluate_grasp(mesh_world, top, axis, spec);
             if verdict == GraspVerdict::NoContact {
@@ -353,10 +357,10 @@ pub fn synthesize_grasps<R: Rng + ?Sized>(
             }
             // Rectangle: project the grasp centre at the top-surface height.
             let centre_top = [center[0], center[1], top[2]];
-            let Some(centre_px) = k.project(camera_from_world.apply(centre_top)) else {
+            let Some(centre_px) = k.project(transform_point(&camera_from_world, centre_top)) else {
                 continue 'pixels;
             };
-            let depth_here = camera_from_world.apply(centre_top)[2].max(0.05);
+            let depth_here = transform_point(&camera_from_world, centre_top)[2].max(0.05);
             let metres_to_px = k.fx / depth_here;
             let opening_m = if opening > 0.0 && opening.is_finite() {
                 opening

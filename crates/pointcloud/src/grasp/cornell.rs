@@ -10,29 +10,87 @@
 //! ```
 //!
 //! Image `k` (from 0) is number `NNNN = 100 + k` in folder `nn = NNNN / 100`, as in the
-//! original (`01/pcd0100r.png` …).
+//! original (`01/pcd0100r.png` …). Image `k` shows the seeded scene [`grasp_scene`]`(…, k, …)`.
+//!
+//! This module knows nothing of datasets: [`export_cornell`] takes the objects, their category
+//! ids and a [`CornellExport`]; `dataset::generate` calls it for `<dataset>/grasp`.
 //!
 //! ```no_run
-//! use lgdm_pointcloud::cornell::read_rectangles;
+//! use lgdm_pointcloud::grasp::cornell::read_rectangles;
 //! let rects = read_rectangles("grasp/01/pcd0100cpos.txt".as_ref()).unwrap();
 //! println!("{} positive rectangles", rects.len());
 //! ```
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::dataset::{DatasetError, DatasetSpec, GraspSetInfo, InstanceInfo};
-use crate::grasp::{GraspCandidate, GraspRectangle, GraspSpec, GraspVerdict, synthesize_grasps};
-use crate::image::{RgbImage, write_depth_tiff};
-use crate::math::{Pose, derive_seed};
+use super::label::{GraspCandidate, GraspRectangle, GraspSpec, GraspVerdict, synthesize_grasps};
+use crate::fsutil::{write_atomic, write_json_atomic};
+use crate::image::{ImageError, RgbImage, write_depth_tiff};
+use crate::math::{Pose, derive_seed, look_at, rotation_z, translation};
 use crate::mesh::Mesh;
 use crate::objects::ObjectModel;
-use crate::progress::Progress;
+use crate::progress::{Progress, par_map_with_progress};
 use crate::render::{Camera, Intrinsics, RenderItem, RgbdFrame, render};
+
+/// Errors of the Cornell export and reader. Each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum CornellError {
+    /// File-system error on a path.
+    #[error("cannot access {}", path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Writing an image failed.
+    #[error("image {}: {reason}", path.display())]
+    Image {
+        /// The image path.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+    /// A rectangle file is not Cornell rectangle text.
+    #[error("rectangle file {}: {reason}", path.display())]
+    Rectangles {
+        /// The text file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+impl CornellError {
+    fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        CornellError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+impl From<ImageError> for CornellError {
+    fn from(e: ImageError) -> Self {
+        CornellError::Image {
+            path: e.path,
+            reason: e.reason,
+        }
+    }
+}
+
+/// The largest number of images: Cornell numbers run from `pcd0100` to `pcd9998`.
+pub const MAX_IMAGES: usize = 9_899;
+
+/// Name of the index file in the Cornell root.
+pub const INDEX_FILE: &str = "index.json";
 
 /// Label of the table in grasp scenes.
 pub const TABLE_LABEL: u8 = 1;
@@ -89,7 +147,7 @@ pub fn grasp_scene(spec: &GraspSpec, seed: u64, image: usize, object: &ObjectMod
     let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_GRASP_SCENE, image as u64, 0));
     let yaw = rng.random_range(0.0..std::f32::consts::TAU);
     let (dx, dy) = (rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05));
-    let world_from_object = Pose::translation([dx, dy, 0.0]).compose(&Pose::rotation_z(yaw));
+    let world_from_object = translation([dx, dy, 0.0]) * rotation_z(yaw);
     // Nearly top-down camera, slightly off-centre, image "up" along world +y.
     let eye = [
         rng.random_range(-0.04..0.04),
@@ -98,7 +156,7 @@ pub fn grasp_scene(spec: &GraspSpec, seed: u64, image: usize, object: &ObjectMod
     ];
     let camera = Camera::new(
         Intrinsics::kinect_vga(),
-        Pose::look_at(eye, [dx * 0.5, dy * 0.5, 0.0], [0.0, 1.0, 0.0]),
+        look_at(eye, [dx * 0.5, dy * 0.5, 0.0], [0.0, 1.0, 0.0]),
     );
     let table = table_mesh();
     let frame = render(
@@ -106,7 +164,7 @@ pub fn grasp_scene(spec: &GraspSpec, seed: u64, image: usize, object: &ObjectMod
         &[
             RenderItem {
                 mesh: &table,
-                world_from_object: Pose::IDENTITY,
+                world_from_object: Pose::identity(),
                 label: TABLE_LABEL,
             },
             RenderItem {
@@ -139,21 +197,22 @@ pub fn cornell_prefix(root: &Path, number: usize) -> PathBuf {
 
 /// Writes rectangles as Cornell text: four `x y` lines per rectangle (shortest round-trip
 /// float formatting, so reading gives the same values back).
-pub fn write_rectangles(path: &Path, rectangles: &[GraspRectangle]) -> Result<(), DatasetError> {
+pub fn write_rectangles(path: &Path, rectangles: &[GraspRectangle]) -> Result<(), CornellError> {
     let mut text = String::new();
     for r in rectangles {
         for [x, y] in r.corners_px {
             let _ = writeln!(text, "{x} {y}");
         }
     }
-    std::fs::write(path, text).map_err(|e| DatasetError::io(path, e))
+    write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+        .map_err(|e| CornellError::io(path, e))
 }
 
 /// Reads Cornell rectangle text (`cpos.txt` / `cneg.txt`). Blank lines are ignored; a line
 /// that is not two numbers, a NaN, or a count of corners not divisible by four is an error.
-pub fn read_rectangles(path: &Path) -> Result<Vec<GraspRectangle>, DatasetError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DatasetError::io(path, e))?;
-    let bad = |reason: String| DatasetError::Corrupt {
+pub fn read_rectangles(path: &Path) -> Result<Vec<GraspRectangle>, CornellError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CornellError::io(path, e))?;
+    let bad = |reason: String| CornellError::Rectangles {
         path: path.to_path_buf(),
         reason,
     };
@@ -211,100 +270,96 @@ pub struct GraspImageInfo {
     pub negatives: usize,
 }
 
-/// Exports `spec.grasp_images` images into `<out_dir>/grasp` (cycling through the objects),
-/// or nothing when it is 0.
-pub fn export_grasp_set(
-    spec: &DatasetSpec,
+/// What [`export_cornell`] writes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CornellExport<'a> {
+    /// Number of images, at most [`MAX_IMAGES`]; image `k` shows object `k mod objects`.
+    pub images: usize,
+    /// Seed of the scenes (placement, camera, candidate sampling).
+    pub seed: u64,
+    /// Gripper and sampling parameters of the labels.
+    pub grasp: &'a GraspSpec,
+}
+
+/// Writes `export.images` grasp-labelled images of `objects` (cycling through them) into
+/// `root` in the Cornell layout, then `root/index.json`, and returns the index. `categories[i]`
+/// is the category id recorded for `objects[i]`, whose instance id is `i`. Images are made in
+/// parallel; the files do not depend on the number of threads. `progress` is called on the
+/// calling thread (stage `grasp images`).
+///
+/// # Panics
+///
+/// If `categories` and `objects` differ in length.
+pub fn export_cornell(
+    root: &Path,
+    export: &CornellExport<'_>,
     objects: &[ObjectModel],
-    instances: &[InstanceInfo],
-    out_dir: &Path,
+    categories: &[u32],
     progress: &mut dyn FnMut(Progress),
-) -> Result<Option<GraspSetInfo>, DatasetError> {
-    if spec.grasp_images == 0 || objects.is_empty() {
-        return Ok(None);
+) -> Result<Vec<GraspImageInfo>, CornellError> {
+    assert_eq!(
+        objects.len(),
+        categories.len(),
+        "one category id per object"
+    );
+    let total = export.images;
+    if total == 0 || objects.is_empty() {
+        return Ok(Vec::new());
     }
-    let root = out_dir.join("grasp");
-    let total = spec.grasp_images;
-    // Two workers, each taking every other image; results are written in image order.
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .clamp(1, 2);
-    let mut entries: Vec<Option<Result<GraspImageInfo, DatasetError>>> =
-        (0..total).map(|_| None).collect();
-    let (tx, rx) = std::sync::mpsc::channel::<(usize, Result<GraspImageInfo, DatasetError>)>();
-    std::thread::scope(|scope| {
-        for w in 0..workers {
-            let tx = tx.clone();
-            let root = &root;
-            scope.spawn(move || {
-                for k in (w..total).step_by(workers) {
-                    let o = k % objects.len();
-                    let r = write_grasp_image(
-                        spec,
-                        root,
-                        k,
-                        &objects[o],
-                        o as u32,
-                        instances[o].category,
-                    );
-                    let failed = r.is_err();
-                    if tx.send((k, r)).is_err() || failed {
-                        break;
-                    }
-                }
-            });
-        }
-        drop(tx);
-        for (done, (k, r)) in rx.into_iter().enumerate() {
-            entries[k] = Some(r);
+    // After a failure the remaining images are skipped (`None`).
+    let failed = AtomicBool::new(false);
+    let mut done = 0u64;
+    let results = par_map_with_progress(
+        total,
+        |k, tick| {
+            if failed.load(Ordering::SeqCst) {
+                return None;
+            }
+            let o = k % objects.len();
+            let r = write_grasp_image(export, root, k, &objects[o], o as u32, categories[o]);
+            if r.is_err() {
+                failed.store(true, Ordering::SeqCst);
+            }
+            tick(1);
+            Some(r)
+        },
+        &mut |n| {
+            done += n;
             progress(Progress {
                 stage: "grasp images",
-                done: done as u64 + 1,
+                done,
                 total: total as u64,
             });
-        }
-    });
-    let mut index = Vec::with_capacity(total);
-    for e in entries {
-        match e {
-            Some(Ok(info)) => index.push(info),
-            Some(Err(e)) => return Err(e),
-            None => return Err(DatasetError::Cancelled),
-        }
-    }
-    let index_path = root.join("index.json");
-    crate::dataset::write_json_atomic(&index_path, &index)?;
-    Ok(Some(GraspSetInfo {
-        dir: "grasp".into(),
-        images: total,
-        index: "grasp/index.json".into(),
-    }))
+        },
+    );
+    let index = results
+        .into_iter()
+        .flatten()
+        .collect::<Result<Vec<GraspImageInfo>, CornellError>>()?;
+    debug_assert_eq!(index.len(), total, "no image is skipped without a failure");
+    let index_path = root.join(INDEX_FILE);
+    write_json_atomic(&index_path, &index).map_err(|e| CornellError::io(&index_path, e))?;
+    Ok(index)
 }
 
 fn write_grasp_image(
-    spec: &DatasetSpec,
+    export: &CornellExport<'_>,
     root: &Path,
     k: usize,
     object: &ObjectModel,
     instance: u32,
     category: u32,
-) -> Result<GraspImageInfo, DatasetError> {
-    let scene = grasp_scene(&spec.grasp, spec.seed, k, object);
+) -> Result<GraspImageInfo, CornellError> {
+    let scene = grasp_scene(export.grasp, export.seed, k, object);
     let number = cornell_number(k);
     let prefix = cornell_prefix(root, number);
     let dir = prefix.parent().expect("prefix has a folder");
-    std::fs::create_dir_all(dir).map_err(|e| DatasetError::io(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|e| CornellError::io(dir, e))?;
     let with = |suffix: &str| PathBuf::from(format!("{}{suffix}", prefix.display()));
     let f = &scene.frame;
     let (w, h) = (f.width as usize, f.height as usize);
-    let image_err = |e: crate::image::ImageError| DatasetError::Image {
-        path: e.path,
-        reason: e.reason,
-    };
-    RgbImage::from_pixels(w, h, f.rgb.clone())
-        .write_png(&with("r.png"))
-        .map_err(image_err)?;
-    write_depth_tiff(&with("d.tiff"), w, h, &f.depth_m).map_err(image_err)?;
+    RgbImage::from_pixels(w, h, f.rgb.clone()).write_png(&with("r.png"))?;
+    write_depth_tiff(&with("d.tiff"), w, h, &f.depth_m)?;
     let (pos, neg) = (scene.positives(), scene.negatives());
     write_rectangles(&with("cpos.txt"), &pos)?;
     write_rectangles(&with("cneg.txt"), &neg)?;
