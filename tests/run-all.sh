@@ -44,5 +44,5 @@ step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into t
 "$venv/bin/python" -m pytest -q python/train_ae/tests
 
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
-VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --test ae_bridge
+VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --lib --test ae_bridge
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-cli --features ae --test e2e_ae

@@ -1,22 +1,18 @@
-//! Where runs get their data: the embedded default dataset (generated into a cache directory on
-//! first use) and per-dataset, per-encoder feature caches.
-//!
-//! Features come from a [`FeatureSource`]: GOOD (Rust, always built) or the torch autoencoder
-//! with a checkpoint (`--encoder ae`, module [`ae`]; cargo feature `ae`).
+//! Where the cli's commands get their data: the dataset named on the command line or the
+//! embedded default, and features from a [`FeatureSource`] — GOOD (`lgdm_pointcloud`, always
+//! built) or the torch autoencoder with a checkpoint (`--encoder ae`, `lgdm_pybridge::ae`,
+//! cargo feature `ae`) — through the feature cache (`lgdm_pointcloud::cache`). This module
+//! chooses and renders progress; the work is the libraries'.
 
 mod ae;
 
 use anyhow::{Context, Result, bail};
-use lgdm_pointcloud::dataset::{self, Dataset, DatasetSpec, Progress};
+use lgdm_pointcloud::cache::{self, FeatureCache, GOOD_BINS};
+use lgdm_pointcloud::dataset::{self, Dataset, Progress};
 use lgdm_pointcloud::features::FeatureTable;
 use std::path::{Path, PathBuf};
 
 use crate::progress::Reporter;
-
-/// Seed of the embedded default dataset.
-pub const DEFAULT_DATASET_SEED: u64 = 0;
-/// Bins per side of the GOOD descriptor's projections (15 → 675 values).
-pub const GOOD_BINS: usize = 15;
 
 /// The feature encoders `lgdm` knows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -87,141 +83,53 @@ impl FeatureSource {
     }
 }
 
-/// The cache directory: `$LGDM_CACHE_DIR`, else `$XDG_CACHE_HOME/lgdm`, else `~/.cache/lgdm`.
+/// The cache directory (`lgdm_pointcloud::cache::cache_dir`).
 pub fn cache_dir() -> Result<PathBuf> {
-    if let Some(dir) = std::env::var_os("LGDM_CACHE_DIR") {
-        return Ok(PathBuf::from(dir));
-    }
-    if let Some(dir) = std::env::var_os("XDG_CACHE_HOME") {
-        return Ok(PathBuf::from(dir).join("lgdm"));
-    }
-    match std::env::var_os("HOME") {
-        Some(home) => Ok(PathBuf::from(home).join(".cache").join("lgdm")),
-        None => bail!("no cache directory: set LGDM_CACHE_DIR (or HOME)"),
-    }
+    Ok(cache::cache_dir()?)
 }
 
-/// Where the embedded default dataset lives (generated there on first use).
-pub fn default_dataset_dir() -> Result<PathBuf> {
-    Ok(cache_dir()?.join("datasets").join(format!(
-        "small-seed{}-v{}",
-        DEFAULT_DATASET_SEED,
-        env!("CARGO_PKG_VERSION")
-    )))
-}
-
-/// The embedded default dataset: the `small` preset, generated on first use.
+/// The embedded default dataset (`lgdm_pointcloud::cache::default_dataset`), with a bar.
 pub fn default_dataset(reporter: &Reporter) -> Result<PathBuf> {
-    let spec = DatasetSpec::small(DEFAULT_DATASET_SEED);
-    let dir = default_dataset_dir()?;
-    if dir.join("manifest.json").is_file() {
-        return Ok(dir);
-    }
-    reporter.message(&format!(
-        "generating the embedded default dataset (small preset) into {} (first use only)",
-        dir.display()
-    ));
-    let parent = dir.parent().expect("joined path has a parent");
-    std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
-    let tmp = parent.join(format!(
-        ".tmp-{}-{}",
-        std::process::id(),
-        dir.file_name().unwrap().to_string_lossy()
-    ));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).ok();
+    let cache = cache_dir()?;
+    let dir = cache::default_dataset_dir(&cache);
+    if !dir.join(dataset::MANIFEST_FILE).is_file() {
+        reporter.message(&format!(
+            "generating the embedded default dataset (small preset) into {} (first use only)",
+            dir.display()
+        ));
     }
     let bar = reporter.bar("dataset", 0);
-    let result = dataset::generate(&spec, &tmp, &mut |p: Progress| {
+    let dir = cache::default_dataset(&cache, &mut |p: Progress| {
         bar.update(p.stage, p.done, p.total)
-    });
+    })
+    .context("generating the embedded default dataset")?;
     bar.finish();
-    if let Err(err) = result {
-        std::fs::remove_dir_all(&tmp).ok();
-        return Err(err).context("generating the embedded default dataset");
-    }
-    match std::fs::rename(&tmp, &dir) {
-        Ok(()) => Ok(dir),
-        // Another process won the race: use its copy.
-        Err(_) if dir.join("manifest.json").is_file() => {
-            std::fs::remove_dir_all(&tmp).ok();
-            Ok(dir)
-        }
-        Err(e) => Err(e).with_context(|| format!("moving the dataset into {}", dir.display())),
-    }
+    Ok(dir)
 }
 
-/// FNV-1a, 64 bit: a stable hash for cache keys.
-pub fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
-    for &b in bytes {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
-}
-
-/// FNV-1a offset basis.
-pub const FNV1A_START: u64 = 0xcbf2_9ce4_8422_2325;
-
-/// FNV-1a hash of a file's bytes (the autoencoder checkpoint's identity).
-pub fn file_hash(path: &Path) -> Result<u64> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(fnv1a(FNV1A_START, &bytes))
-}
-
-/// A key that changes when the dataset's files, the encoder or the autoencoder checkpoint's
-/// bytes change.
-fn feature_key(ds: &Dataset, source: &FeatureSource) -> Result<u64> {
-    let mut h = FNV1A_START;
-    h = fnv1a(h, source.encoder().name().as_bytes());
-    h = fnv1a(h, &(GOOD_BINS as u64).to_le_bytes());
-    h = fnv1a(h, env!("CARGO_PKG_VERSION").as_bytes());
-    if let Some(checkpoint) = source.ae_checkpoint() {
-        h = fnv1a(h, ae::PIPELINE.as_bytes());
-        h = fnv1a(h, &file_hash(checkpoint)?.to_le_bytes());
-    }
-    let manifest = ds.dir().join("manifest.json");
-    h = fnv1a(
-        h,
-        &std::fs::read(&manifest).with_context(|| format!("reading {}", manifest.display()))?,
-    );
-    for c in &ds.manifest().collections {
-        let path = ds.dir().join(&c.file);
-        let meta =
-            std::fs::metadata(&path).with_context(|| format!("reading {}", path.display()))?;
-        h = fnv1a(h, c.file.as_bytes());
-        h = fnv1a(h, &meta.len().to_le_bytes());
-        if let Ok(t) = meta.modified()
-            && let Ok(d) = t.duration_since(std::time::UNIX_EPOCH)
-        {
-            h = fnv1a(h, &d.as_nanos().to_le_bytes());
-        }
-    }
-    Ok(h)
-}
-
-/// Computes a dataset's features, or reads them from the cache.
+/// Computes a dataset's features, or reads them from the cache
+/// (`lgdm_pointcloud::cache::FeatureCache`, keyed by the dataset's files and the source).
 pub fn features(ds: &Dataset, source: &FeatureSource, reporter: &Reporter) -> Result<FeatureTable> {
-    let key = feature_key(ds, source)?;
-    let dir = cache_dir()?.join("features");
-    let path = dir.join(format!("{key:016x}-{}.npz", source.encoder().name()));
-    if path.is_file() {
-        match FeatureTable::read_npz(&path) {
-            Ok(t) => return Ok(t),
-            Err(e) => reporter.message(&format!(
+    let checkpoint_hash = source
+        .ae_checkpoint()
+        .map(|c| cache::file_hash(c).map(u64::to_le_bytes))
+        .transpose()?;
+    let extra: Vec<&[u8]> = match &checkpoint_hash {
+        Some(hash) => vec![ae::PIPELINE.as_bytes(), hash],
+        None => vec![],
+    };
+    FeatureCache::new(&cache_dir()?).get_or_compute(
+        ds,
+        source.encoder().name(),
+        &extra,
+        || compute_features(ds, source, reporter),
+        &mut |path, e| {
+            reporter.message(&format!(
                 "ignoring a broken feature cache {}: {e}",
                 path.display()
-            )),
-        }
-    }
-    let table = compute_features(ds, source, reporter)?;
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let tmp = dir.join(format!(".tmp-{}-{key:016x}.npz", std::process::id()));
-    table
-        .write_npz(&tmp)
-        .with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(table)
+            ))
+        },
+    )
 }
 
 /// Computes features without the cache.

@@ -1,6 +1,6 @@
 //! The Gamma-GWR network: a growing self-organising network whose nodes carry an input weight,
 //! K temporal context vectors, a habituation counter, label histograms, undirected aged edges
-//! and directed temporal synapses (DESIGN.md §3, steps 1–7).
+//! and directed temporal synapses (docs/DESIGN.md §3, steps 1–7).
 //!
 //! Storage: node j's weight and contexts are one block `[w_j, c_j1, …, c_jK]` of (K+1)·D floats
 //! in a single contiguous buffer; edges are adjacency lists (each edge stored at both ends with

@@ -6,7 +6,8 @@
 //! [`dataset`] (MCAP collections in the `foxglove.PointCloud` schema + `manifest.json`) →
 //! [`features`] (GOOD, written as `.npz`). [`grasp`] labels grasps from geometry, writes
 //! grasp-labelled RGB-D images in the Cornell layout and decodes the grasp network's maps;
-//! [`projection`] makes 224×224 images of clouds. Every file is written atomically (temp file,
+//! [`projection`] makes 224×224 images of clouds; [`cache`] holds the embedded default
+//! dataset and cached feature tables. Every file is written atomically (temp file,
 //! then rename); parallel work runs on rayon's pool and never changes the bytes written.
 //!
 //! Lengths are metres, angles radians; clouds are in the camera's optical frame.
@@ -22,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod augment;
+pub mod cache;
 pub mod cloud;
 pub mod dataset;
 pub mod features;

@@ -1,25 +1,24 @@
 //! `lgdm info`: version, cache locations and the embedded defaults.
 
-use crate::data;
+use lgdm_pointcloud::cache::{self, DEFAULT_DATASET_SEED, GOOD_BINS};
 
 /// Prints the version, the cache directory and the embedded defaults.
 pub fn run() -> anyhow::Result<()> {
     println!("lgdm {}", env!("CARGO_PKG_VERSION"));
-    match (data::cache_dir(), data::default_dataset_dir()) {
-        (Ok(dir), Ok(dataset)) => {
+    match cache::cache_dir() {
+        Ok(dir) => {
             println!("cache directory      {}", dir.display());
             println!(
-                "embedded dataset     {} (small preset, seed {}, generated on first use)",
-                dataset.display(),
-                data::DEFAULT_DATASET_SEED
+                "embedded dataset     {} (small preset, seed {DEFAULT_DATASET_SEED}, generated on first use)",
+                cache::default_dataset_dir(&dir).display(),
             );
         }
-        (Err(e), _) | (_, Err(e)) => println!("cache directory      unavailable: {e}"),
+        Err(e) => println!("cache directory      unavailable: {e}"),
     }
     println!(
         "default encoder      good (GOOD descriptor, {} bins per side → {} values)",
-        data::GOOD_BINS,
-        3 * data::GOOD_BINS * data::GOOD_BINS
+        GOOD_BINS,
+        3 * GOOD_BINS * GOOD_BINS
     );
     println!(
         "autoencoder          {}",

@@ -214,7 +214,7 @@ pub fn run(args: Args) -> Result<()> {
         ae_checkpoint: source.ae_checkpoint().map(|p| p.display().to_string()),
         ae_checkpoint_fnv1a: source
             .ae_checkpoint()
-            .map(|p| data::file_hash(p).map(|h| format!("{h:016x}")))
+            .map(|p| lgdm_pointcloud::cache::file_hash(p).map(|h| format!("{h:016x}")))
             .transpose()?,
     };
     let run_config = RunConfig::new(&experiment, &provenance);

@@ -9,6 +9,9 @@
 //! `.pth` files (editable installs). When an import fails, the error names what is missing
 //! and where it looked ([`AeError::Missing`]).
 //!
+//! [`views`] turns point-cloud views into the network's input and a dataset into a feature
+//! table (`--encoder ae`).
+//!
 //! ```no_run
 //! use lgdm_pybridge::ae::AutoEncoder;
 //! let ae = AutoEncoder::load("runs/ae/ae.pt".as_ref())?;
@@ -25,6 +28,10 @@ use numpy::ndarray::{Array3, Array4};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyModule;
+
+pub mod views;
+
+pub use views::{AE_BATCH, FeatureStats, PIPELINE, ViewImage, dataset_features, view_image};
 
 /// Length of the autoencoder's feature vector.
 pub const FEATURE_DIM: usize = 256;
@@ -62,6 +69,9 @@ pub enum AeError {
     /// `train_ae.bridge.default_checkpoint()` is missing or names no file.
     #[error("no default autoencoder checkpoint: {0}")]
     NoDefaultCheckpoint(String),
+    /// The dataset could not be read.
+    #[error("reading the dataset: {0}")]
+    Dataset(String),
 }
 
 /// Output of [`AutoEncoder::infer`] for n images of h × w pixels.
