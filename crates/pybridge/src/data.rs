@@ -288,16 +288,14 @@ pub fn good_features<'py>(
     out.set_item("frame", ids(&table.frame).into_pyarray(py))?;
     // What `lgdm.run_scenario` needs besides the rows: the manifest's split and names.
     let manifest = ds.manifest();
-    let split = |s| -> Vec<u32> {
-        manifest
-            .collections
-            .iter()
-            .filter(|c| c.split == s)
-            .map(|c| c.index)
-            .collect()
-    };
-    out.set_item("train_collections", split(dataset::Split::Train))?;
-    out.set_item("test_collections", split(dataset::Split::Test))?;
+    out.set_item(
+        "train_collections",
+        manifest.collections_in(dataset::Split::Train),
+    )?;
+    out.set_item(
+        "test_collections",
+        manifest.collections_in(dataset::Split::Test),
+    )?;
     out.set_item("categories", manifest.categories.clone())?;
     out.set_item("dataset", ds.dir().display().to_string())?;
     out.set_item("encoder", "good")?;
@@ -329,21 +327,7 @@ pub fn generate_dataset(
     }
     spec.meshes = meshes;
     spec.validate().map_err(dataset_error)?;
-    if out.is_dir() && !out.join(dataset::MANIFEST_FILE).is_file() {
-        let non_empty = std::fs::read_dir(&out)
-            .map_err(|e| errors::new(Kind::Dataset, format!("{}: {e}", out.display())))?
-            .next()
-            .is_some();
-        if non_empty {
-            return Err(errors::new(
-                Kind::Dataset,
-                format!(
-                    "{} exists, is not empty and holds no lgdm dataset (manifest.json)",
-                    out.display()
-                ),
-            ));
-        }
-    }
+    dataset::check_output_dir(&out).map_err(dataset_error)?;
     let inner = py
         .detach(|| {
             dataset::generate(&spec, &out, &mut |_| {})?;

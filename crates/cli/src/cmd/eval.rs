@@ -3,11 +3,11 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args as ClapArgs;
-use lgdm_gdm::{Gdm, PredictOptions, Sample};
-use std::collections::BTreeMap;
+use lgdm_gdm::experiment::evaluate;
+use lgdm_gdm::{Gdm, PredictOptions};
+use lgdm_pointcloud::dataset::Split;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 use crate::data::{self, Encoder};
 use crate::progress::{ProgressMode, Reporter};
@@ -71,75 +71,34 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let manifest = ds.manifest();
-    let wanted: Vec<u32> = manifest
-        .collections
-        .iter()
-        .filter(|c| match args.split {
-            EvalSplit::All => true,
-            EvalSplit::Test => c.split == lgdm_pointcloud::dataset::Split::Test,
-            EvalSplit::Train => c.split == lgdm_pointcloud::dataset::Split::Train,
-        })
-        .map(|c| c.index)
-        .collect();
-    // Rows grouped by sequence, frames in order, so the temporal context runs as in training.
-    let mut by_seq: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
-    for i in 0..table.len() {
-        if wanted.contains(&table.collection[i]) {
-            by_seq.entry(table.sequence[i]).or_default().push(i);
-        }
-    }
-    let mut rows = Vec::new();
-    for mut seq in by_seq.into_values() {
-        seq.sort_by_key(|&i| table.frame[i]);
-        rows.extend(seq);
-    }
-    if rows.is_empty() {
-        bail!("no samples in the selected collections");
-    }
-    let samples: Vec<Sample<'_>> = rows
-        .iter()
-        .map(|&i| Sample {
-            x: table.row(i),
-            sequence: table.sequence[i],
-            instance: Some(table.instance[i]),
-            category: Some(table.category[i]),
-        })
-        .collect();
-    let opts = PredictOptions {
-        no_context: args.no_context,
+    let wanted: Vec<u32> = match args.split {
+        EvalSplit::All => manifest.collections.iter().map(|c| c.index).collect(),
+        EvalSplit::Test => manifest.collections_in(Split::Test),
+        EvalSplit::Train => manifest.collections_in(Split::Train),
     };
-    let t0 = Instant::now();
-    let predictions = gdm.predict(&samples, opts).context("predicting")?;
-    let ms_per_sample = t0.elapsed().as_secs_f64() * 1e3 / samples.len() as f64;
-
-    let n_cat = manifest.categories.len();
-    let mut confusion = vec![vec![0u64; n_cat + 1]; n_cat];
-    let (mut inst_hits, mut cat_em_hits, mut cat_sm_hits) = (0usize, 0usize, 0usize);
-    for (s, p) in samples.iter().zip(&predictions) {
-        inst_hits += usize::from(p.instance == s.instance);
-        cat_em_hits += usize::from(p.category_em == s.category);
-        cat_sm_hits += usize::from(p.category == s.category);
-        let truth = s.category.unwrap_or(0) as usize;
-        let predicted = p.category.map_or(n_cat, |c| (c as usize).min(n_cat));
-        if truth < n_cat {
-            confusion[truth][predicted] += 1;
-        }
-    }
-    let n = samples.len() as f64;
+    let view = data::table(&table, &[], &[], &manifest.categories);
+    let e = evaluate(
+        &gdm,
+        &view,
+        &wanted,
+        PredictOptions {
+            no_context: args.no_context,
+        },
+    )?;
     let size_mb = gdm.size_bytes() as f64 / 1e6;
     let result = serde_json::json!({
         "model": args.model.display().to_string(),
         "dataset": ds.dir().display().to_string(),
         "split": format!("{:?}", args.split).to_lowercase(),
         "context": !args.no_context,
-        "n": samples.len(),
-        "instance_accuracy": inst_hits as f64 / n,
-        "category_accuracy_em": cat_em_hits as f64 / n,
-        "category_accuracy_sm": cat_sm_hits as f64 / n,
+        "n": e.n,
+        "instance_accuracy": e.instance_accuracy,
+        "category_accuracy_em": e.category_accuracy_em,
+        "category_accuracy_sm": e.category_accuracy_sm,
         "episodic_nodes": gdm.episodic().len(),
         "semantic_nodes": gdm.semantic().len(),
         "model_size_mb": size_mb,
-        "inference_ms_per_sample": ms_per_sample,
+        "inference_ms_per_sample": e.ms_per_sample,
     });
 
     let out = match &args.out {
@@ -157,7 +116,7 @@ pub fn run(args: Args) -> Result<()> {
         let _ = write!(csv, ",{name}");
     }
     csv.push_str(",none\n");
-    for (c, row) in confusion.iter().enumerate() {
+    for (c, row) in e.confusion.iter().enumerate() {
         csv.push_str(&manifest.categories[c]);
         for v in row {
             let _ = write!(csv, ",{v}");
@@ -165,7 +124,8 @@ pub fn run(args: Args) -> Result<()> {
         csv.push('\n');
     }
     write_atomic(&out.join("confusion.csv"), csv.as_bytes())?;
-    let square: Vec<Vec<u64>> = confusion.iter().map(|r| r[..n_cat].to_vec()).collect();
+    let n_cat = manifest.categories.len();
+    let square: Vec<Vec<u64>> = e.confusion.iter().map(|r| r[..n_cat].to_vec()).collect();
     crate::plot::write_confusion_png(&out.join("confusion.png"), &manifest.categories, &square)?;
     write_atomic(
         &out.join("eval.json"),
@@ -176,21 +136,21 @@ pub fn run(args: Args) -> Result<()> {
         "model {} on {} ({} samples, {:?} collections, context {})",
         args.model.display(),
         ds.dir().display(),
-        samples.len(),
+        e.n,
         args.split,
         if args.no_context { "off" } else { "on" }
     );
     println!(
         "instance accuracy (G-EM)   {:6.2} %",
-        100.0 * inst_hits as f64 / n
+        100.0 * e.instance_accuracy
     );
     println!(
         "category accuracy (G-EM)   {:6.2} %",
-        100.0 * cat_em_hits as f64 / n
+        100.0 * e.category_accuracy_em
     );
     println!(
         "category accuracy (G-SM)   {:6.2} %",
-        100.0 * cat_sm_hits as f64 / n
+        100.0 * e.category_accuracy_sm
     );
     println!(
         "nodes G-EM / G-SM          {} / {}",
@@ -198,7 +158,10 @@ pub fn run(args: Args) -> Result<()> {
         gdm.semantic().len()
     );
     println!("model size                 {size_mb:.3} MB");
-    println!("inference time             {ms_per_sample:.4} ms/sample");
+    println!(
+        "inference time             {:.4} ms/sample",
+        e.ms_per_sample
+    );
     println!(
         "confusion matrix           {}",
         out.join("confusion.csv").display()

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use lgdm_pointcloud::dataset::{self, DatasetSpec, Progress};
 
 use crate::progress::{ProgressMode, Reporter};
@@ -61,18 +61,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     spec.meshes = args.meshes.clone();
     spec.validate()?;
-    if args.out.is_dir() && !args.out.join(dataset::MANIFEST_FILE).is_file() {
-        let non_empty = std::fs::read_dir(&args.out)
-            .with_context(|| format!("reading {}", args.out.display()))?
-            .next()
-            .is_some();
-        if non_empty {
-            bail!(
-                "{} exists, is not empty and holds no lgdm dataset (manifest.json); choose another --out",
-                args.out.display()
-            );
-        }
-    }
+    dataset::check_output_dir(&args.out).context("choose another --out")?;
     let started = Instant::now();
     let mut task = reporter.bar("gen-dataset", 0);
     let result = dataset::generate(&spec, &args.out, &mut |p: Progress| {

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
-use lgdm_gdm::experiment::run_dir::{self, Merged, Run, merge};
+use lgdm_gdm::experiment::run_dir::{self, Run, merge};
 
 use crate::report;
 
@@ -36,11 +36,8 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|d| Run::read(d))
         .collect::<Result<Vec<_>, _>>()?;
-    let Merged {
-        metrics,
-        config,
-        models,
-    } = merge(&runs)?;
+    let merged = merge(&runs)?;
+    let metrics = &merged.metrics;
     let seeds: Vec<u64> = metrics.trials.iter().map(|t| t.seed).collect();
     if seeds.windows(2).any(|w| w[1] != w[0] + 1) {
         eprintln!(
@@ -51,23 +48,10 @@ pub fn run(args: Args) -> Result<()> {
     }
     let out = &args.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    Run::write_files(out, &config, &metrics)?;
-    crate::plot::write_run_plots(out, &metrics).context("drawing the plots")?;
-    let table = report::summary_table(&metrics);
+    let missing = merged.write(out)?;
+    crate::plot::write_run_plots(out, metrics).context("drawing the plots")?;
+    let table = report::summary_table(metrics);
     run_dir::write_atomic(&out.join("summary.txt"), table.as_bytes())?;
-    let mut missing = 0;
-    for (src, t) in &models {
-        let dst = out.join(run_dir::model_file(*t));
-        if !src.exists() {
-            missing += 1;
-            continue;
-        }
-        let _ = std::fs::remove_file(&dst);
-        if std::fs::hard_link(src, &dst).is_err() {
-            std::fs::copy(src, &dst)
-                .with_context(|| format!("copying {} to {}", src.display(), dst.display()))?;
-        }
-    }
     if missing > 0 {
         eprintln!(
             "note: {missing} trial model(s) were not found next to their metrics.json and are not linked"

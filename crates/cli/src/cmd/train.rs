@@ -178,16 +178,8 @@ pub fn run(args: Args) -> Result<()> {
     let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
     let features = data::features(&ds, &source, &reporter)?;
     let manifest = ds.manifest();
-    let split = |s| {
-        manifest
-            .collections
-            .iter()
-            .filter(|c| c.split == s)
-            .map(|c| c.index)
-            .collect::<Vec<u32>>()
-    };
-    let train_collections = split(lgdm_pointcloud::dataset::Split::Train);
-    let test_collections = split(lgdm_pointcloud::dataset::Split::Test);
+    let train_collections = manifest.collections_in(lgdm_pointcloud::dataset::Split::Train);
+    let test_collections = manifest.collections_in(lgdm_pointcloud::dataset::Split::Test);
     let table = data::table(
         &features,
         &train_collections,

@@ -6,6 +6,7 @@
 //!   held-out-instance split and the NIC step rule.
 //! - [`records`]: what a run measures (per step, per trial, summary over trials), i.e. the
 //!   contents of `metrics.json`.
+//! - [`evaluation`]: a trained model scored on some collections (`lgdm eval`).
 //! - [`run_dir`]: the run-directory format (`config.toml`, `metrics.json`, `model-trial<t>.lgdm`)
 //!   and the merge of single-trial runs.
 //!
@@ -47,6 +48,7 @@
 //! # Ok::<(), lgdm_gdm::experiment::ExperimentError>(())
 //! ```
 
+pub mod evaluation;
 pub mod plan;
 pub mod records;
 pub mod run_dir;
@@ -54,6 +56,7 @@ mod runner;
 
 use rayon::prelude::*;
 
+pub use evaluation::{Evaluation, evaluate, rows_in_sequence_order};
 pub use plan::{EvalScope, Plan, Rows, Scenario, Step};
 pub use records::{Figures, MeanStd, RunMetrics, StepRecord, Summary, TrialRecord};
 pub use runner::{stratified_subset, subsample};

@@ -233,6 +233,30 @@ pub struct Merged {
     pub models: Vec<(PathBuf, usize)>,
 }
 
+impl Merged {
+    /// Writes the merged run into `out` (created if needed): `config.toml`, `metrics.json` and
+    /// each trial's model, hard-linked (copied where links fail) under its new trial index.
+    /// Returns how many source models were missing (not linked).
+    pub fn write(&self, out: &Path) -> Result<usize, ExperimentError> {
+        std::fs::create_dir_all(out).map_err(|e| run_dir_error(out, e))?;
+        Run::write_files(out, &self.config, &self.metrics)?;
+        let mut missing = 0;
+        for (src, t) in &self.models {
+            let dst = out.join(model_file(*t));
+            if !src.exists() {
+                missing += 1;
+                continue;
+            }
+            let _ = std::fs::remove_file(&dst);
+            if std::fs::hard_link(src, &dst).is_err() {
+                std::fs::copy(src, &dst)
+                    .map_err(|e| run_dir_error(&dst, format!("copying {}: {e}", src.display())))?;
+            }
+        }
+        Ok(missing)
+    }
+}
+
 /// Checks that the runs are one experiment and merges them, trials sorted by seed. Nothing is
 /// written.
 pub fn merge(runs: &[Run]) -> Result<Merged, ExperimentError> {

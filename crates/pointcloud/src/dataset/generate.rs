@@ -74,8 +74,30 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
     Ok((objects, categories, instances))
 }
 
+/// Checks that `out` can receive a dataset: it does not exist, is empty, or already holds an
+/// lgdm dataset (`manifest.json`) to be replaced. Anything else is refused, so generating never
+/// mixes a dataset into unrelated files.
+pub fn check_output_dir(out: &Path) -> Result<(), DatasetError> {
+    if out.is_dir() && !out.join(super::MANIFEST_FILE).is_file() {
+        let non_empty = std::fs::read_dir(out)
+            .map_err(|e| DatasetError::io(out, e))?
+            .next()
+            .is_some();
+        if non_empty {
+            return Err(DatasetError::InvalidSpec {
+                field: "out",
+                reason: format!(
+                    "{} exists, is not empty and holds no lgdm dataset (manifest.json)",
+                    out.display()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Generates the dataset `spec` describes into `out_dir` (created if needed) and returns its
-/// manifest. Collection files are written under temporary names and renamed when complete;
+/// manifest (the directory must pass [`check_output_dir`]). Collection files are written under temporary names and renamed when complete;
 /// the manifest is written last, so a failed run never leaves a half-written collection or a
 /// manifest that points at missing data. Collections and grasp images are made in parallel
 /// (rayon); the bytes do not depend on the number of threads. `progress` is called on the
@@ -86,6 +108,7 @@ pub fn generate(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Manifest, DatasetError> {
     spec.validate()?;
+    check_output_dir(out_dir)?;
     progress(Progress {
         stage: "objects",
         done: 0,
