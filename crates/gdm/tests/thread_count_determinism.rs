@@ -47,6 +47,22 @@ fn data() -> Data {
     d
 }
 
+/// Collections 0–3 train, 4–5 test.
+fn table(d: &Data) -> Table<'_> {
+    Table {
+        features: &d.x,
+        dim: 8,
+        collection: &d.collection,
+        category: &d.category,
+        instance: &d.instance,
+        sequence: &d.sequence,
+        frame: &d.frame,
+        train_collections: &[0, 1, 2, 3],
+        test_collections: &[4, 5],
+        category_names: &d.names,
+    }
+}
+
 fn without_times(mut t: TrialRecord) -> TrialRecord {
     t.train_seconds = 0.0;
     t.inference_ms_per_sample = 0.0;
@@ -59,18 +75,7 @@ fn without_times(mut t: TrialRecord) -> TrialRecord {
 #[test]
 fn parallel_trials_equal_sequential_trials() {
     let d = data();
-    let table = Table {
-        features: &d.x,
-        dim: 8,
-        collection: &d.collection,
-        category: &d.category,
-        instance: &d.instance,
-        sequence: &d.sequence,
-        frame: &d.frame,
-        train_collections: &[0, 1, 2, 3],
-        test_collections: &[4, 5],
-        category_names: &d.names,
-    };
+    let table = table(&d);
     for scenario in [Scenario::Ni, Scenario::Nic] {
         let mut settings = Settings::new(scenario);
         settings.trials = 3;
@@ -99,18 +104,7 @@ fn parallel_trials_equal_sequential_trials() {
 #[test]
 fn bad_settings_and_tables_are_refused_before_any_work() {
     let d = data();
-    let table = Table {
-        features: &d.x,
-        dim: 8,
-        collection: &d.collection,
-        category: &d.category,
-        instance: &d.instance,
-        sequence: &d.sequence,
-        frame: &d.frame,
-        train_collections: &[0, 1, 2, 3],
-        test_collections: &[4, 5],
-        category_names: &d.names,
-    };
+    let table = table(&d);
     let refused = |table: Table<'_>, edit: &dyn Fn(&mut Settings)| {
         let mut s = Settings::new(Scenario::Ni);
         edit(&mut s);
