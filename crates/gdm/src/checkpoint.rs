@@ -21,7 +21,11 @@
 //!
 //! Loading checks, in order: magic, version, length (truncation), checksum, then the content
 //! (config validity, sizes, every structural invariant); each failure has its own
-//! [`CheckpointError`] variant. Same model → same bytes: nothing is written in hash order.
+//! [`CheckpointError`] variant. Every declared size (dimension, node, edge, synapse and
+//! histogram counts) is checked against the bytes left in the payload before anything is
+//! allocated for it, and the stored config against the limits of [`GdmConfig::validate`], so
+//! reading allocates at most a small multiple of the file's size, whatever the file says.
+//! Same model → same bytes: nothing is written in hash order.
 //!
 //! ```
 //! use lgdm_gdm::{CheckpointError, Gdm, GdmConfig, Sample};
@@ -39,7 +43,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use crate::config::GdmConfig;
+use crate::config::{GdmConfig, MAX_DIM};
 use crate::dual::Gdm;
 use crate::error::CheckpointError;
 use crate::memory::{EpisodicMemory, SemanticMemory};
@@ -127,13 +131,25 @@ impl<'a> Reader<'a> {
             v => Err(corrupt(format!("flag byte {v} at offset {}", self.pos - 1))),
         }
     }
-    /// A count of items of `item_bytes` each that must fit in the rest of the payload.
-    fn count(&mut self, n: u64, item_bytes: usize) -> Result<usize, CheckpointError> {
-        let rest = (self.buf.len() - self.pos) as u64;
+    /// Bytes left in the payload.
+    fn rest(&self) -> usize {
+        self.buf.len() - self.pos
+    }
+    /// A count of items of at least `item_bytes` each (`what` names them), checked against the
+    /// rest of the payload before anything is allocated for them.
+    fn count(
+        &mut self,
+        n: u64,
+        item_bytes: usize,
+        what: impl FnOnce() -> String,
+    ) -> Result<usize, CheckpointError> {
+        let rest = self.rest() as u64;
         match n.checked_mul(item_bytes as u64) {
             Some(total) if total <= rest => Ok(n as usize),
             _ => Err(corrupt(format!(
-                "count {n} at offset {} exceeds the payload",
+                "{n} {} of at least {item_bytes} bytes each declared at offset {}, but only \
+                 {rest} bytes remain",
+                what(),
                 self.pos
             ))),
         }
@@ -224,14 +240,24 @@ fn read_network(
         )));
     }
     let stride = net.dim * net.depth;
-    let n = r.count(n, stride * 4 + 4)?;
+    // Per node at least: its block, habituation, edge count, synapse count, a histogram count
+    // per level (the template's shape is bounded by the config, so this cannot overflow).
+    let node_bytes = 4 * (stride + 3 + net.labels.len());
+    let n = r.count(n, node_bytes, || format!("{name} nodes"))?;
+    if let Some(cap) = net.params.max_nodes
+        && n > cap
+    {
+        return Err(corrupt(format!(
+            "{name}: {n} nodes but the config caps the memory at {cap}"
+        )));
+    }
     net.weights = r.f32s(n * stride)?;
     net.rebuild_prefix();
     net.habituation = r.f32s(n)?;
     net.edges = Vec::with_capacity(n);
     for _ in 0..n {
         let c = r.u32()?;
-        let c = r.count(c as u64, 8)?;
+        let c = r.count(c as u64, 8, || format!("{name} edges"))?;
         let mut list = Vec::with_capacity(c);
         for _ in 0..c {
             list.push(Edge {
@@ -244,7 +270,7 @@ fn read_network(
     net.synapses = Vec::with_capacity(n);
     for _ in 0..n {
         let c = r.u32()?;
-        let c = r.count(c as u64, 8)?;
+        let c = r.count(c as u64, 8, || format!("{name} synapses"))?;
         let mut list = Vec::with_capacity(c);
         for _ in 0..c {
             list.push((r.u32()?, r.u32()?));
@@ -253,9 +279,10 @@ fn read_network(
     }
     for level in net.labels.iter_mut() {
         level.clear();
+        level.reserve_exact(n);
         for _ in 0..n {
             let c = r.u32()?;
-            let c = r.count(c as u64, 8)?;
+            let c = r.count(c as u64, 8, || format!("{name} histogram entries"))?;
             let mut entries = Vec::with_capacity(c);
             for _ in 0..c {
                 entries.push((r.u32()?, r.f32()?));
@@ -287,6 +314,11 @@ fn read_network(
     }
     let has_prev = r.flag()?;
     let prev = r.u32()?;
+    if !has_prev && prev != 0 {
+        return Err(corrupt(format!(
+            "{name}: previous node {prev} stored without its flag"
+        )));
+    }
     let mut ctx = ContextState::new(net.dim, net.depth);
     ctx.prev_node = has_prev.then_some(prev);
     ctx.prev_block = r.f32s(stride)?;
@@ -387,17 +419,32 @@ impl Gdm {
             pos: 0,
         };
         let config_len = r.u64()?;
-        let config_len = r.count(config_len, 1)?;
+        let config_len = r.count(config_len, 1, || "config bytes".into())?;
         let config: GdmConfig = serde_json::from_slice(r.take(config_len)?)
             .map_err(|e| corrupt(format!("config: {e}")))?;
         config.validate()?;
         let dim = r.u64()?;
-        if dim == 0 || dim > u32::MAX as u64 {
-            return Err(corrupt(format!("dimension {dim}")));
+        if dim == 0 || dim > MAX_DIM as u64 {
+            return Err(corrupt(format!("dimension {dim} is not in 1..={MAX_DIM}")));
         }
         let dim = dim as usize;
+        // Each network stores at least its stream state, (K+1)·D floats, and with Mahalanobis
+        // 2·D f64 statistics: check that before `Gdm::new` allocates them.
+        let per_dim = 4 * (config.episodic.context_depth + 1)
+            + 4 * (config.semantic.context_depth + 1)
+            + if config.metric == Metric::Mahalanobis {
+                32
+            } else {
+                0
+            };
+        r.count(dim as u64, per_dim, || "input dimensions".into())?;
         let has_sequence = r.flag()?;
         let sequence = r.u64()?;
+        if !has_sequence && sequence != 0 {
+            return Err(corrupt(format!(
+                "sequence id {sequence} stored without its flag"
+            )));
+        }
         let replays = r.u64()?;
         let fresh = Gdm::new(config, dim).map_err(|e| corrupt(e.to_string()))?;
         let episodic = read_network(&mut r, fresh.episodic.net, "episodic")?;

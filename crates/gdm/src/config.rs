@@ -28,6 +28,21 @@ pub use crate::metric::Metric;
 /// Names accepted by [`GdmConfig::preset`] (and by `preset = "…"` in a config file).
 pub const PRESETS: &[&str] = &["paper_incremental", "paper_batch"];
 
+/// Largest input dimension D a model accepts ([`Gdm::new`](crate::Gdm::new)): 2²⁰ features,
+/// 4 MiB per vector. With the largest context depth a node block is then 65·2²⁰ floats.
+pub const MAX_DIM: usize = 1 << 20;
+/// Largest context depth K ([`MemoryParams::context_depth`]).
+pub const MAX_CONTEXT_DEPTH: usize = 64;
+/// Largest node cap ([`MemoryParams::max_nodes`]): 10⁷ nodes, already 81 GB of weights at
+/// D = 675, K = 2.
+pub const MAX_NODES: usize = 10_000_000;
+/// Longest RNAT chain ([`ReplayParams::chain_length`]). One replay trains on up to
+/// nodes × chain length pseudo-samples; the paper's chains have K + 1 = 3 nodes.
+pub const MAX_CHAIN_LENGTH: usize = 10_000;
+/// Most label levels of one network ([`GammaGwr::new`](crate::GammaGwr::new); the memories
+/// use 1 and 2).
+pub const MAX_LEVELS: usize = 64;
+
 /// Hyperparameters of one Gamma-GWR memory (episodic or semantic).
 ///
 /// The defaults are the episodic memory's values of the paper's incremental preset; the
@@ -40,7 +55,8 @@ pub struct MemoryParams {
     pub activation_threshold: f32,
     /// Habituation threshold h_T: only a node fired below it may spawn a new node (default: 0.1).
     pub habituation_threshold: f32,
-    /// Number K of temporal context descriptors per node (default: 2).
+    /// Number K of temporal context descriptors per node (default: 2; at most
+    /// [`MAX_CONTEXT_DEPTH`] = 64).
     pub context_depth: usize,
     /// Context mixing β of the global-context recursion (default: 0.4).
     pub beta: f32,
@@ -73,7 +89,7 @@ pub struct MemoryParams {
     /// not insert (default: 0.001). Unused by the episodic memory.
     pub mod_rate: f32,
     /// Node capacity: no insertion once the memory holds this many nodes (default: none,
-    /// unbounded).
+    /// unbounded; at least 2, at most [`MAX_NODES`] = 10⁷).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_nodes: Option<usize>,
 }
@@ -135,10 +151,10 @@ impl MemoryParams {
         };
         unit_closed("activation_threshold", self.activation_threshold)?;
         unit_closed("habituation_threshold", self.habituation_threshold)?;
-        if self.context_depth > 64 {
+        if self.context_depth > MAX_CONTEXT_DEPTH {
             return Err(ConfigError::invalid(
                 f("context_depth"),
-                format!("{} is larger than 64", self.context_depth),
+                format!("{} is larger than {MAX_CONTEXT_DEPTH}", self.context_depth),
             ));
         }
         unit_closed("beta", self.beta)?;
@@ -202,13 +218,19 @@ impl MemoryParams {
             ));
         }
         unit_closed("mod_rate", self.mod_rate)?;
-        if let Some(m) = self.max_nodes
-            && m < 2
-        {
-            return Err(ConfigError::invalid(
-                f("max_nodes"),
-                format!("{m} is below the 2 initial nodes"),
-            ));
+        if let Some(m) = self.max_nodes {
+            if m < 2 {
+                return Err(ConfigError::invalid(
+                    f("max_nodes"),
+                    format!("{m} is below the 2 initial nodes"),
+                ));
+            }
+            if m > MAX_NODES {
+                return Err(ConfigError::invalid(
+                    f("max_nodes"),
+                    format!("{m} is larger than {MAX_NODES} (leave it out for no cap)"),
+                ));
+            }
         }
         Ok(())
     }
@@ -226,7 +248,7 @@ pub(crate) fn default_alphas(depth: usize) -> Vec<f32> {
 #[serde(default, deny_unknown_fields)]
 pub struct ReplayParams {
     /// Length of each RNAT chain (default: none, meaning K+1 with K the episodic
-    /// `context_depth`).
+    /// `context_depth`; at least 1, at most [`MAX_CHAIN_LENGTH`] = 10 000).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub chain_length: Option<usize>,
     /// Replay the chains in an order shuffled with the config's seed rather than by node id
@@ -324,18 +346,26 @@ impl GdmConfig {
         }
     }
 
-    /// Checks every field; the error names the first bad one (e.g. `episodic.beta`).
+    /// Checks every field; the error names the first bad one (e.g. `episodic.beta`). Every
+    /// size has a finite bound ([`MAX_CONTEXT_DEPTH`], [`MAX_NODES`], [`MAX_CHAIN_LENGTH`]), so a
+    /// valid config never asks for an allocation out of proportion to the data.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.metric.validate()?;
         self.episodic.validate("episodic")?;
         self.semantic.validate("semantic")?;
-        if let Some(len) = self.replay.chain_length
-            && len == 0
-        {
-            return Err(ConfigError::invalid(
-                "replay.chain_length",
-                "must be at least 1",
-            ));
+        if let Some(len) = self.replay.chain_length {
+            if len == 0 {
+                return Err(ConfigError::invalid(
+                    "replay.chain_length",
+                    "must be at least 1",
+                ));
+            }
+            if len > MAX_CHAIN_LENGTH {
+                return Err(ConfigError::invalid(
+                    "replay.chain_length",
+                    format!("{len} is larger than {MAX_CHAIN_LENGTH}"),
+                ));
+            }
         }
         Ok(())
     }
@@ -503,6 +533,49 @@ mod tests {
         let mut c = GdmConfig::default();
         c.episodic.beta = f32::NAN;
         assert_eq!(c.validate().unwrap_err().field(), Some("episodic.beta"));
+    }
+
+    #[test]
+    fn sizes_have_finite_bounds_naming_the_field() {
+        let check = |edit: &dyn Fn(&mut GdmConfig), field: &str| {
+            let mut c = GdmConfig::default();
+            edit(&mut c);
+            let e = c.validate().unwrap_err();
+            assert_eq!(e.field(), Some(field), "{e}");
+        };
+        check(
+            &|c| c.replay.chain_length = Some(MAX_CHAIN_LENGTH + 1),
+            "replay.chain_length",
+        );
+        check(
+            &|c| c.replay.chain_length = Some(1_000_000_000),
+            "replay.chain_length",
+        );
+        check(&|c| c.replay.chain_length = Some(0), "replay.chain_length");
+        check(
+            &|c| c.episodic.max_nodes = Some(MAX_NODES + 1),
+            "episodic.max_nodes",
+        );
+        check(
+            &|c| c.semantic.max_nodes = Some(usize::MAX),
+            "semantic.max_nodes",
+        );
+        check(
+            &|c| c.semantic.context_depth = MAX_CONTEXT_DEPTH + 1,
+            "semantic.context_depth",
+        );
+        // The bounds themselves are allowed.
+        let mut c = GdmConfig::default();
+        c.replay.chain_length = Some(MAX_CHAIN_LENGTH);
+        c.episodic.max_nodes = Some(MAX_NODES);
+        c.semantic.context_depth = MAX_CONTEXT_DEPTH;
+        c.validate().unwrap();
+        // The reported case: a TOML file with a huge chain length.
+        let c: GdmConfig = toml::from_str("[replay]\nchain_length = 1000000000\n").unwrap();
+        assert_eq!(
+            c.validate().unwrap_err().field(),
+            Some("replay.chain_length")
+        );
     }
 
     #[test]

@@ -25,7 +25,7 @@
 //! assert!(scores.category_accuracy_em >= 0.5);
 //! ```
 
-use crate::config::GdmConfig;
+use crate::config::{GdmConfig, MAX_DIM};
 use crate::error::GdmError;
 use crate::memory::{EpisodicMemory, SemanticMemory};
 use crate::scores::{Scores, accuracy};
@@ -115,6 +115,17 @@ pub struct Gdm {
     pub(crate) replays: u64,
 }
 
+/// Checks an input dimension: 1 ≤ `dim` ≤ [`MAX_DIM`].
+pub(crate) fn check_dim(dim: usize) -> Result<(), GdmError> {
+    if dim == 0 {
+        return Err(GdmError::ZeroDimension);
+    }
+    if dim > MAX_DIM {
+        return Err(GdmError::DimensionTooLarge { dim, max: MAX_DIM });
+    }
+    Ok(())
+}
+
 /// Checks a batch: non-empty, right dimension, finite values.
 pub(crate) fn validate_batch(samples: &[Sample<'_>], dim: usize) -> Result<(), GdmError> {
     if samples.is_empty() {
@@ -146,13 +157,12 @@ pub(crate) struct Detail {
 }
 
 impl Gdm {
-    /// An untrained model for `dim`-dimensional features. Each memory starts empty and takes its
-    /// first two training samples as its first two nodes.
+    /// An untrained model for `dim`-dimensional features (1 ≤ `dim` ≤
+    /// [`MAX_DIM`](crate::config::MAX_DIM) = 2²⁰). Each memory starts empty and takes its first
+    /// two training samples as its first two nodes.
     pub fn new(config: GdmConfig, dim: usize) -> Result<Gdm, GdmError> {
         config.validate()?;
-        if dim == 0 {
-            return Err(GdmError::ZeroDimension);
-        }
+        check_dim(dim)?;
         Ok(Gdm {
             episodic: EpisodicMemory::new(config.episodic.clone(), config.metric, dim)?,
             semantic: SemanticMemory::new(config.semantic.clone(), config.metric, dim)?,

@@ -59,6 +59,14 @@ pub enum GdmError {
     /// The model's input dimension must be at least 1.
     #[error("input dimension must be at least 1")]
     ZeroDimension,
+    /// The model's input dimension exceeds [`MAX_DIM`](crate::config::MAX_DIM).
+    #[error("input dimension {dim} is larger than {max}")]
+    DimensionTooLarge {
+        /// The dimension asked for.
+        dim: usize,
+        /// The largest dimension a model accepts.
+        max: usize,
+    },
     /// A call got no samples.
     #[error("empty batch: at least one sample is required")]
     EmptyBatch,

@@ -2,7 +2,8 @@
 //! lifelong, open-ended recognition of instances and categories from sequences of feature
 //! vectors, with intrinsic replay against catastrophic forgetting (docs/DESIGN.md §3).
 //!
-//! - [`config`]: hyperparameters ([`GdmConfig`], presets, validation).
+//! - [`config`]: hyperparameters ([`GdmConfig`], presets, validation) and the size limits
+//!   (`MAX_DIM`, `MAX_CONTEXT_DEPTH`, `MAX_NODES`, `MAX_CHAIN_LENGTH`) every reader enforces.
 //! - [`network`]: the Gamma-GWR network ([`GammaGwr`]).
 //! - [`memory`]: [`EpisodicMemory`] and [`SemanticMemory`].
 //! - [`dual`]: the dual model [`Gdm`]: train, predict, evaluate.

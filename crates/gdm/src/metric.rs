@@ -366,9 +366,15 @@ fn l1_bound_excludes(query: &[f32], node: &[f32], dim: usize, alphas: &[f32], bo
     false
 }
 
-/// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index.
+/// True if (d, i) ranks before (e, j): smaller distance, ties to the smaller index. A NaN
+/// distance (from values near the f32 limits: ∞ − ∞, 0 · ∞) ranks after every number, NaNs by
+/// index, and before an empty slot (j = usize::MAX): the ranking is total, so a search over
+/// n ≥ 2 nodes always finds a best and a second node. Without NaN the order is the plain one.
 #[inline(always)]
 fn before(d: f32, i: usize, e: f32, j: usize) -> bool {
+    if d.is_nan() || e.is_nan() {
+        return !d.is_nan() || j == usize::MAX || (e.is_nan() && i < j);
+    }
     d < e || (d == e && i < j)
 }
 
@@ -627,7 +633,8 @@ impl RunningStats {
     }
 
     pub fn observe(&mut self, x: &[f32]) {
-        self.count += 1;
+        // Saturating: a count read from a checkpoint may be anything.
+        self.count = self.count.saturating_add(1);
         let n = self.count as f64;
         for ((m, m2), &v) in self.mean.iter_mut().zip(self.m2.iter_mut()).zip(x) {
             let v = v as f64;
@@ -790,6 +797,61 @@ mod tests {
                 assert!(one.second.is_none());
             }
         }
+    }
+
+    #[test]
+    fn nan_distances_rank_last_and_never_leave_the_ranking_empty() {
+        let mut r = Ranking::new(true);
+        for (j, d) in [
+            (0, f32::NAN),
+            (1, 2.0),
+            (2, f32::NAN),
+            (3, 1.0),
+            (4, f32::INFINITY),
+        ] {
+            r.offer(j, d);
+        }
+        let m = r.finish();
+        assert_eq!((m.best, m.second), ((3, 1.0), Some((1, 2.0))));
+        let mut r = Ranking::new(true);
+        for (j, d) in [(0, f32::NAN), (1, f32::NAN), (2, 5.0)] {
+            r.offer(j, d);
+        }
+        let m = r.finish();
+        assert_eq!(m.best, (2, 5.0));
+        assert_eq!(m.second.unwrap().0, 0);
+        // All NaN (e.g. 0 · ∞ in every node): still a best and a second node, by index.
+        let mut r = Ranking::new(true);
+        for j in [4, 2, 7] {
+            r.offer(j, f32::NAN);
+        }
+        let m = r.finish();
+        assert_eq!((m.best.0, m.second.unwrap().0), (2, 4));
+        // The search over f32-limit weights where Mahalanobis gives ∞ · 0 = NaN everywhere.
+        let weights = [3.0e38f32, -3.0e38, 3.0e38, 2.0e38];
+        let prefix = weights;
+        let mut summary = vec![0.0; 4 * summary_len(1, 1)];
+        for (node, out) in weights.chunks(1).zip(summary.chunks_mut(summary_len(1, 1))) {
+            summarise(node, 1, out);
+        }
+        let buf = NodeBuffer {
+            prefix: &prefix,
+            summary: &summary,
+            weights: &weights,
+            dim: 1,
+            depth: 1,
+        };
+        let m = search(
+            Metric::Mahalanobis,
+            &[0.0],
+            &buf,
+            &[-3.0e38],
+            &[1.0],
+            true,
+            &[],
+        )
+        .unwrap();
+        assert_eq!((m.best.0, m.second.unwrap().0), (1, 0));
     }
 
     #[test]

@@ -25,7 +25,7 @@
 //! assert!(net.train_step(&[f32::NAN, 0.0], &[None], Supervision::Unsupervised).is_err());
 //! ```
 
-use crate::config::MemoryParams;
+use crate::config::{MAX_LEVELS, MemoryParams};
 use crate::error::{ConfigError, GdmError};
 use crate::metric::{self, Matches, Metric, NodeBuffer, RunningStats};
 
@@ -224,20 +224,27 @@ impl std::fmt::Debug for GammaGwr {
 }
 
 impl GammaGwr {
-    /// An empty network for `dim`-dimensional inputs with `levels` label levels.
+    /// An empty network for `dim`-dimensional inputs (1 ≤ `dim` ≤
+    /// [`MAX_DIM`](crate::config::MAX_DIM)) with `levels` label levels (1 ≤ `levels` ≤
+    /// [`MAX_LEVELS`]).
     pub fn new(
         params: MemoryParams,
         metric: Metric,
         dim: usize,
         levels: usize,
     ) -> Result<Self, GdmError> {
-        if dim == 0 {
-            return Err(GdmError::ZeroDimension);
-        }
+        crate::dual::check_dim(dim)?;
         metric.validate()?;
         params.validate("memory")?;
         if levels == 0 {
             return Err(ConfigError::invalid("levels", "at least one label level").into());
+        }
+        if levels > MAX_LEVELS {
+            return Err(ConfigError::invalid(
+                "levels",
+                format!("{levels} is larger than {MAX_LEVELS}"),
+            )
+            .into());
         }
         let depth = params.context_depth + 1;
         Ok(GammaGwr {

@@ -42,21 +42,33 @@ pub struct ReplayStats {
 pub fn rnats(net: &GammaGwr, length: usize) -> Vec<Vec<usize>> {
     (0..net.len())
         .map(|i| {
-            let mut chain = Vec::with_capacity(length);
-            let mut cur = i;
-            chain.push(cur);
-            while chain.len() < length {
-                match net.successor(cur) {
-                    Some(next) => {
-                        chain.push(next);
-                        cur = next;
-                    }
-                    None => break,
-                }
-            }
+            let mut chain = Vec::new();
+            walk(|j| net.successor(j), i, length, &mut chain);
             chain
         })
         .collect()
+}
+
+/// Fills `chain` with the RNAT from `start`: `start`, then `successor` of the last node, for at
+/// most `length` nodes, stopping at a node without successor.
+fn walk(
+    successor: impl Fn(usize) -> Option<usize>,
+    start: usize,
+    length: usize,
+    chain: &mut Vec<usize>,
+) {
+    chain.clear();
+    let mut cur = start;
+    chain.push(cur);
+    while chain.len() < length {
+        match successor(cur) {
+            Some(next) => {
+                chain.push(next);
+                cur = next;
+            }
+            None => break,
+        }
+    }
 }
 
 /// splitmix64: decorrelates the per-call seeds.
@@ -78,37 +90,38 @@ impl Gdm {
             return Ok(ReplayStats::default());
         }
         let dim = self.dim;
-        let chains = rnats(em, self.config.replay_chain_length());
-        // Snapshot before any replay step changes the network.
-        let total: usize = chains.iter().map(Vec::len).sum();
-        let mut weights = Vec::with_capacity(total * dim);
-        let mut labels = Vec::with_capacity(total);
-        let mut spans = Vec::with_capacity(chains.len());
-        let mut sources = Vec::with_capacity(total);
-        for chain in &chains {
-            let start = labels.len();
-            for &j in chain {
-                weights.extend_from_slice(em.weight(j));
-                labels.push((em.label(INSTANCE_LEVEL, j), em.label(CATEGORY_LEVEL, j)));
-                sources.push(j);
-            }
-            spans.push(start..labels.len());
+        let n = em.len();
+        let length = self.config.replay_chain_length();
+        // Snapshot before any replay step changes the network: per node its input weight,
+        // labels and successor (O(nodes · D), whatever the chain length; the chains are walked
+        // on the snapshot as they are replayed).
+        let mut weights = Vec::with_capacity(n * dim);
+        for j in 0..n {
+            weights.extend_from_slice(em.weight(j));
         }
+        let labels: Vec<(Option<u32>, Option<u32>)> = (0..n)
+            .map(|j| (em.label(INSTANCE_LEVEL, j), em.label(CATEGORY_LEVEL, j)))
+            .collect();
+        let successors: Vec<Option<usize>> = (0..n).map(|j| em.successor(j)).collect();
         // Speed hints only (results do not depend on them): a pseudo-sample is tried first
         // against the episodic node it came from, and against the semantic node that matched
         // the same episodic node earlier in this replay. Replay removes no nodes, so the
         // indices stay valid.
-        let mut semantic_hint: Vec<Option<usize>> = vec![None; em.len()];
+        let mut semantic_hint: Vec<Option<usize>> = vec![None; n];
+        let mut order: Vec<usize> = (0..n).collect();
         if self.config.replay.shuffle {
             let seed = mix(self.config.seed ^ mix(self.replays));
-            spans.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
+            order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
         }
-        for span in &spans {
+        let mut chain = Vec::with_capacity(length.min(n + 1));
+        let mut total = 0usize;
+        for &start in &order {
+            walk(|j| successors[j], start, length, &mut chain);
+            total += chain.len();
             self.begin_sequence();
-            for t in span.clone() {
-                let x = &weights[t * dim..(t + 1) * dim];
-                let (instance, category) = labels[t];
-                let source = sources[t];
+            for &source in &chain {
+                let x = &weights[source * dim..(source + 1) * dim];
+                let (instance, category) = labels[source];
                 self.episodic.net.hint_next(source);
                 self.episodic.train_step(x, instance, category);
                 if let Some(h) = semantic_hint[source] {
@@ -121,9 +134,9 @@ impl Gdm {
         }
         self.begin_sequence();
         self.sequence = None;
-        self.replays += 1;
+        self.replays = self.replays.wrapping_add(1);
         let stats = ReplayStats {
-            chains: spans.len(),
+            chains: n,
             samples: total,
         };
         tracing::debug!(

@@ -29,6 +29,9 @@ pub enum Kind {
     Checkpoint,
     /// `lgdm.DatasetError`: a dataset that cannot be opened or read.
     Dataset,
+    /// `lgdm._errors.InternalError` (an `LgdmError`): a bug (a Rust panic) interrupted a call;
+    /// the model it was changing refuses further calls.
+    Internal,
 }
 
 impl Kind {
@@ -40,14 +43,15 @@ impl Kind {
             Kind::NotFitted => "NotFittedError",
             Kind::Checkpoint => "CheckpointError",
             Kind::Dataset => "DatasetError",
+            Kind::Internal => "InternalError",
         }
     }
 }
 
-static CLASSES: PyOnceLock<[Py<PyType>; 6]> = PyOnceLock::new();
+static CLASSES: PyOnceLock<[Py<PyType>; 7]> = PyOnceLock::new();
 
 fn class(py: Python<'_>, kind: Kind) -> PyResult<Bound<'_, PyType>> {
-    let classes = CLASSES.get_or_try_init(py, || -> PyResult<[Py<PyType>; 6]> {
+    let classes = CLASSES.get_or_try_init(py, || -> PyResult<[Py<PyType>; 7]> {
         let m = py.import("lgdm._errors")?;
         let get = |k: Kind| -> PyResult<Py<PyType>> {
             Ok(m.getattr(k.name())?.cast_into::<PyType>()?.unbind())
@@ -59,6 +63,7 @@ fn class(py: Python<'_>, kind: Kind) -> PyResult<Bound<'_, PyType>> {
             get(Kind::NotFitted)?,
             get(Kind::Checkpoint)?,
             get(Kind::Dataset)?,
+            get(Kind::Internal)?,
         ])
     })?;
     Ok(classes[kind as usize].bind(py).clone())
@@ -84,6 +89,7 @@ pub fn gdm_kind(err: &GdmError) -> Kind {
     match err {
         GdmError::Config(_) => Kind::Config,
         GdmError::ZeroDimension
+        | GdmError::DimensionTooLarge { .. }
         | GdmError::EmptyBatch
         | GdmError::DimensionMismatch { .. }
         | GdmError::NonFinite { .. } => Kind::Input,

@@ -5,16 +5,26 @@
 //! ranges, builds [`Sample`]s that borrow the arrays' memory (no copy), and runs the model with
 //! the GIL released.
 //!
+//! Threads: one `Model` may be used from several Python threads. The model sits behind a
+//! read-write lock taken with the GIL released: calls that change it (`train`, `end_episode`,
+//! `replay`) run one at a time and wait for the calls that read it (`predict`, `evaluate`,
+//! `to_bytes`, …), which run in parallel with each other. Every call is applied whole, in the
+//! order the lock grants it; none is lost or interleaved with another. A Rust panic inside a
+//! call (a bug) becomes `InternalError` (an `lgdm.LgdmError`); if the call was changing the
+//! model, the model (possibly half-updated) then refuses every later call with that error.
+//!
 //! Conventions shared with the Python API:
 //! - label arrays: `-1` means "no label"; any other value must be in `0..=u32::MAX`.
 //! - sequence ids: `≥ 0`; no sequence array means "this call is one new sequence", realised
 //!   with an id from the reserved range `2⁶³..` that differs from the last trained sample's.
 //!
 //! ```ignore
-//! let mut m = Model::new(r#"{"preset": "paper_batch"}"#, 2)?;   // from Python: Model(json, 2)
+//! let m = Model::new(r#"{"preset": "paper_batch"}"#, 2)?;   // from Python: Model(json, 2)
 //! ```
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
+use std::sync::RwLock;
 use std::time::Instant;
 
 use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample, Scores};
@@ -117,10 +127,11 @@ fn labels(
         .collect()
 }
 
-/// Sequence ids: the given array (values ≥ 0), or `auto` for every sample.
-fn sequences(arr: Option<&PyReadonlyArray1<'_, i64>>, n: usize, auto: u64) -> PyResult<Vec<u64>> {
+/// Sequence ids: the given array (values ≥ 0), or `None` when there is none (the caller then
+/// picks one new id for the whole batch).
+fn sequences(arr: Option<&PyReadonlyArray1<'_, i64>>, n: usize) -> PyResult<Option<Vec<u64>>> {
     let Some(arr) = arr else {
-        return Ok(vec![auto; n]);
+        return Ok(None);
     };
     let values = arr
         .as_slice()
@@ -139,24 +150,41 @@ fn sequences(arr: Option<&PyReadonlyArray1<'_, i64>>, n: usize, auto: u64) -> Py
                 errors::input(format!("sequence[{i}] = {v}: sequence ids must be ≥ 0"))
             })
         })
-        .collect()
+        .collect::<PyResult<Vec<u64>>>()
+        .map(Some)
 }
 
 /// Owned per-sample metadata; [`Batch::samples`] borrows it together with the features.
 struct Batch {
-    sequence: Vec<u64>,
+    /// Per-sample sequence ids; `None`: the batch is one new sequence.
+    sequence: Option<Vec<u64>>,
     instance: Vec<Option<u32>>,
     category: Vec<Option<u32>>,
 }
 
 impl Batch {
-    fn samples<'a>(&'a self, x: &'a [f32], d: usize) -> Vec<Sample<'a>> {
+    /// Checks the label and sequence arrays of a batch of `n` samples.
+    fn new(
+        n: usize,
+        instance: Option<&PyReadonlyArray1<'_, i64>>,
+        category: Option<&PyReadonlyArray1<'_, i64>>,
+        sequence: Option<&PyReadonlyArray1<'_, i64>>,
+    ) -> PyResult<Batch> {
+        Ok(Batch {
+            instance: labels("instance", instance, n)?,
+            category: labels("category", category, n)?,
+            sequence: sequences(sequence, n)?,
+        })
+    }
+
+    /// The samples; without sequence ids, every sample gets the new id `auto`.
+    fn samples<'a>(&'a self, x: &'a [f32], d: usize, auto: u64) -> Vec<Sample<'a>> {
         x.chunks_exact(d)
-            .zip(&self.sequence)
+            .enumerate()
             .zip(self.instance.iter().zip(&self.category))
-            .map(|((x, &sequence), (&instance, &category))| Sample {
+            .map(|((i, x), (&instance, &category))| Sample {
                 x,
-                sequence,
+                sequence: self.sequence.as_ref().map_or(auto, |s| s[i]),
                 instance,
                 category,
             })
@@ -188,36 +216,109 @@ type PredictArrays<'py> = (
 );
 
 /// The native Growing Dual-Memory model. Use `lgdm.GDM`; this class is its engine.
-#[pyclass(module = "lgdm._lgdm", name = "Model")]
-#[derive(Debug, Clone)]
+///
+/// Safe to share between threads (see the module docs): `frozen`, so pyo3 keeps no borrow flag
+/// ("Already borrowed" cannot occur); the model sits behind [`RwLock`], always taken with the
+/// GIL released.
+#[pyclass(module = "lgdm._lgdm", name = "Model", frozen)]
+#[derive(Debug)]
 pub struct Model {
-    gdm: Gdm,
+    /// Input dimension (fixed for the model's life; read without the lock).
+    dim: usize,
+    gdm: RwLock<Gdm>,
+}
+
+/// Why a call could not run.
+enum Refusal {
+    /// The call panicked (the message); `changing`: while holding the model exclusively.
+    Panic { msg: String, changing: bool },
+    /// An earlier call panicked while changing the model.
+    Poisoned,
+}
+
+impl Refusal {
+    fn into_err(self) -> PyErr {
+        match self {
+            Refusal::Panic { msg, changing } => errors::new(
+                Kind::Internal,
+                if changing {
+                    format!(
+                        "internal error (a bug in lgdm, please report it): {msg}; the model may \
+                         be half-updated and refuses further calls: load it again from a \
+                         checkpoint"
+                    )
+                } else {
+                    format!("internal error (a bug in lgdm, please report it): {msg}")
+                },
+            ),
+            Refusal::Poisoned => errors::new(
+                Kind::Internal,
+                "an earlier call on this model failed with an internal error and may have left \
+                 it half-updated; it refuses further calls: load it again from a checkpoint",
+            ),
+        }
+    }
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "panic".to_string())
 }
 
 impl Model {
-    /// The wrapped model.
-    pub fn gdm(&self) -> &Gdm {
-        &self.gdm
-    }
-
     /// Wraps a model (e.g. one trained by `lgdm.run_scenario`).
     pub fn from_gdm(gdm: Gdm) -> Model {
-        Model { gdm }
+        Model {
+            dim: gdm.dim(),
+            gdm: RwLock::new(gdm),
+        }
     }
 
-    fn batch(
+    /// Runs `f` on the wrapped model under the read lock, with the GIL released.
+    pub fn with_gdm<R: Send>(
         &self,
-        n: usize,
-        instance: Option<&PyReadonlyArray1<'_, i64>>,
-        category: Option<&PyReadonlyArray1<'_, i64>>,
-        sequence: Option<&PyReadonlyArray1<'_, i64>>,
-        auto: u64,
-    ) -> PyResult<Batch> {
-        Ok(Batch {
-            instance: labels("instance", instance, n)?,
-            category: labels("category", category, n)?,
-            sequence: sequences(sequence, n, auto)?,
+        py: Python<'_>,
+        f: impl FnOnce(&Gdm) -> R + Send,
+    ) -> PyResult<R> {
+        self.read(py, f)
+    }
+
+    /// `f` on the model under the shared (read) lock, GIL released while waiting and running.
+    fn read<R: Send>(&self, py: Python<'_>, f: impl FnOnce(&Gdm) -> R + Send) -> PyResult<R> {
+        py.detach(|| {
+            catch_unwind(AssertUnwindSafe(|| {
+                let gdm = self.gdm.read().map_err(|_| Refusal::Poisoned)?;
+                Ok(f(&gdm))
+            }))
+            .unwrap_or_else(|p| {
+                Err(Refusal::Panic {
+                    msg: panic_message(&*p),
+                    changing: false,
+                })
+            })
         })
+        .map_err(Refusal::into_err)
+    }
+
+    /// `f` on the model under the exclusive (write) lock, GIL released while waiting and
+    /// running. A panic in `f` unwinds through the guard, which poisons the lock.
+    fn write<R: Send>(&self, py: Python<'_>, f: impl FnOnce(&mut Gdm) -> R + Send) -> PyResult<R> {
+        py.detach(|| {
+            catch_unwind(AssertUnwindSafe(|| {
+                let mut gdm = self.gdm.write().map_err(|_| Refusal::Poisoned)?;
+                Ok(f(&mut gdm))
+            }))
+            .unwrap_or_else(|p| {
+                Err(Refusal::Panic {
+                    msg: panic_message(&*p),
+                    changing: true,
+                })
+            })
+        })
+        .map_err(Refusal::into_err)
     }
 }
 
@@ -228,7 +329,7 @@ impl Model {
     fn new(config: &str, dim: usize) -> PyResult<Model> {
         let config = config_from_json(config)?;
         let gdm = Gdm::new(config, dim).map_err(errors::gdm)?;
-        Ok(Model { gdm })
+        Ok(Model::from_gdm(gdm))
     }
 
     /// Reads a model from checkpoint bytes.
@@ -250,64 +351,67 @@ impl Model {
     }
 
     /// The checkpoint bytes (identical to the file `save` writes).
-    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let bytes = py.detach(|| self.gdm.to_bytes());
-        PyBytes::new(py, &bytes)
+    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let bytes = self.read(py, |gdm| gdm.to_bytes())?;
+        Ok(PyBytes::new(py, &bytes))
     }
 
     /// Writes the checkpoint file atomically.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| self.gdm.save(&path))
+        self.read(py, |gdm| gdm.save(&path))?
             .map_err(|e| errors::checkpoint(e, Some(&path)))
     }
 
     /// A deep copy.
-    fn copy(&self) -> Model {
-        self.clone()
+    fn copy(&self, py: Python<'_>) -> PyResult<Model> {
+        Ok(Model::from_gdm(self.read(py, Gdm::clone)?))
     }
 
     /// Input dimension.
     #[getter]
     fn dim(&self) -> usize {
-        self.gdm.dim()
+        self.dim
     }
 
     /// Episodic node count.
     #[getter]
-    fn n_episodic(&self) -> usize {
-        self.gdm.episodic().len()
+    fn n_episodic(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, |gdm| gdm.episodic().len())
     }
 
     /// Semantic node count.
     #[getter]
-    fn n_semantic(&self) -> usize {
-        self.gdm.semantic().len()
+    fn n_semantic(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, |gdm| gdm.semantic().len())
     }
 
     /// Checkpoint size in bytes.
     #[getter]
-    fn size_bytes(&self) -> usize {
-        self.gdm.size_bytes()
+    fn size_bytes(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, Gdm::size_bytes)
     }
 
     /// The full config as JSON.
     #[getter]
-    fn config_json(&self) -> String {
-        serde_json::to_string(self.gdm.config()).expect("a config serialises to JSON")
+    fn config_json(&self, py: Python<'_>) -> PyResult<String> {
+        self.read(py, |gdm| {
+            serde_json::to_string(gdm.config()).expect("a config serialises to JSON")
+        })
     }
 
     /// Sequence id of the last trained sample, if the next sample could continue it.
     #[getter]
-    fn last_sequence(&self) -> Option<u64> {
-        self.gdm.current_sequence()
+    fn last_sequence(&self, py: Python<'_>) -> PyResult<Option<u64>> {
+        self.read(py, Gdm::current_sequence)
     }
 
     /// `epochs` passes over the samples (ending an episode after each if `end_episodes`);
-    /// returns the last pass's statistics.
+    /// returns the last pass's statistics. The whole call holds the model: calls from other
+    /// threads come before or after it, never in between.
     #[pyo3(signature = (x, instance=None, category=None, sequence=None, epochs=1, end_episodes=false))]
     #[allow(clippy::too_many_arguments)]
     fn train<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         x: PyReadonlyArray2<'py, f32>,
         instance: Option<PyReadonlyArray1<'py, i64>>,
@@ -319,18 +423,12 @@ impl Model {
         if epochs == 0 {
             return Err(errors::input("epochs must be at least 1"));
         }
-        let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let auto = auto_sequence(self.gdm.current_sequence());
-        let batch = self.batch(
-            n,
-            instance.as_ref(),
-            category.as_ref(),
-            sequence.as_ref(),
-            auto,
-        )?;
-        let gdm = &mut self.gdm;
-        let result = py.detach(|| {
-            let samples = batch.samples(xs, d);
+        let (xs, n, d) = features(&x, Some(self.dim))?;
+        let batch = Batch::new(n, instance.as_ref(), category.as_ref(), sequence.as_ref())?;
+        let result = self.write(py, |gdm| {
+            // Under the lock: the new sequence differs from whatever was trained last.
+            let auto = auto_sequence(gdm.current_sequence());
+            let samples = batch.samples(xs, d, auto);
             let mut stats = None;
             for _ in 0..epochs {
                 stats = Some(gdm.train(&samples)?);
@@ -339,7 +437,7 @@ impl Model {
                 }
             }
             Ok(stats.expect("epochs ≥ 1"))
-        });
+        })?;
         let stats = result.map_err(errors::gdm)?;
         let out = PyDict::new(py);
         out.set_item("samples", stats.samples)?;
@@ -359,11 +457,12 @@ impl Model {
         sequence: Option<PyReadonlyArray1<'py, i64>>,
         no_context: bool,
     ) -> PyResult<PredictArrays<'py>> {
-        let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let batch = self.batch(n, None, None, sequence.as_ref(), 0)?;
-        let gdm = &self.gdm;
-        let predictions = py
-            .detach(|| gdm.predict(&batch.samples(xs, d), PredictOptions { no_context }))
+        let (xs, n, d) = features(&x, Some(self.dim))?;
+        let batch = Batch::new(n, None, None, sequence.as_ref())?;
+        let predictions = self
+            .read(py, |gdm| {
+                gdm.predict(&batch.samples(xs, d, 0), PredictOptions { no_context })
+            })?
             .map_err(errors::gdm)?;
         let instance = label_array(predictions.iter().map(|p| p.instance));
         let category = label_array(predictions.iter().map(|p| p.category));
@@ -388,35 +487,36 @@ impl Model {
         sequence: Option<PyReadonlyArray1<'py, i64>>,
         no_context: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let batch = self.batch(
-            n,
-            instance.as_ref(),
-            category.as_ref(),
-            sequence.as_ref(),
-            0,
-        )?;
-        let gdm = &self.gdm;
-        let scores = py
-            .detach(|| gdm.evaluate(&batch.samples(xs, d), PredictOptions { no_context }))
+        let (xs, n, d) = features(&x, Some(self.dim))?;
+        let batch = Batch::new(n, instance.as_ref(), category.as_ref(), sequence.as_ref())?;
+        let scores = self
+            .read(py, |gdm| {
+                gdm.evaluate(&batch.samples(xs, d, 0), PredictOptions { no_context })
+            })?
             .map_err(errors::gdm)?;
         scores_dict(py, &scores)
     }
 
     /// Ends an episode: isolated-node removal; the next sample starts a new sequence.
-    fn end_episode(&mut self, py: Python<'_>) {
-        let gdm = &mut self.gdm;
-        py.detach(|| gdm.end_episode());
+    fn end_episode(&self, py: Python<'_>) -> PyResult<()> {
+        self.write(py, Gdm::end_episode)
     }
 
     /// Intrinsic replay; returns `{"chains": …, "samples": …}`.
-    fn replay<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let gdm = &mut self.gdm;
-        let stats = py.detach(|| gdm.replay()).map_err(errors::gdm)?;
+    fn replay<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let stats = self.write(py, Gdm::replay)?.map_err(errors::gdm)?;
         let out = PyDict::new(py);
         out.set_item("chains", stats.chains)?;
         out.set_item("samples", stats.samples)?;
         Ok(out)
+    }
+
+    /// Test hook: panics while holding the model exclusively, as a bug inside a training call
+    /// would. Raises `InternalError`; the model then refuses every call.
+    fn _panic_for_tests(&self, py: Python<'_>) -> PyResult<()> {
+        self.write(py, |_| -> () {
+            panic!("panic requested by _panic_for_tests")
+        })
     }
 
     /// Benchmark helper: seconds of each of `repeats` native `predict` calls on the same
@@ -428,11 +528,10 @@ impl Model {
         x: PyReadonlyArray2<'_, f32>,
         repeats: usize,
     ) -> PyResult<Vec<f64>> {
-        let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let batch = self.batch(n, None, None, None, 0)?;
-        let gdm = &self.gdm;
-        py.detach(|| {
-            let samples = batch.samples(xs, d);
+        let (xs, n, d) = features(&x, Some(self.dim))?;
+        let batch = Batch::new(n, None, None, None)?;
+        self.read(py, |gdm| {
+            let samples = batch.samples(xs, d, 0);
             (0..repeats)
                 .map(|_| {
                     let t0 = Instant::now();
@@ -444,7 +543,7 @@ impl Model {
                     })
                 })
                 .collect::<Result<Vec<f64>, _>>()
-        })
+        })?
         .map_err(errors::gdm)
     }
 
@@ -459,12 +558,11 @@ impl Model {
         category: Option<PyReadonlyArray1<'py, i64>>,
         repeats: usize,
     ) -> PyResult<Vec<f64>> {
-        let (xs, n, d) = features(&x, Some(self.gdm.dim()))?;
-        let auto = auto_sequence(self.gdm.current_sequence());
-        let batch = self.batch(n, instance.as_ref(), category.as_ref(), None, auto)?;
-        let gdm = &self.gdm;
-        py.detach(|| {
-            let samples = batch.samples(xs, d);
+        let (xs, n, d) = features(&x, Some(self.dim))?;
+        let batch = Batch::new(n, instance.as_ref(), category.as_ref(), None)?;
+        self.read(py, |gdm| {
+            let auto = auto_sequence(gdm.current_sequence());
+            let samples = batch.samples(xs, d, auto);
             (0..repeats)
                 .map(|_| {
                     let mut fresh = gdm.clone();
@@ -477,7 +575,7 @@ impl Model {
                     })
                 })
                 .collect::<Result<Vec<f64>, _>>()
-        })
+        })?
         .map_err(errors::gdm)
     }
 }

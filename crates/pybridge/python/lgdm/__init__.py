@@ -36,6 +36,7 @@ from ._errors import (
     ConfigError,
     DatasetError,
     InputError,
+    InternalError,
     LgdmError,
     NotFittedError,
 )
@@ -52,6 +53,7 @@ __all__ = [
     "Dataset",
     "DatasetError",
     "InputError",
+    "InternalError",
     "LgdmError",
     "NotFittedError",
     "Prediction",

@@ -13,6 +13,7 @@ __all__ = [
     "ConfigError",
     "DatasetError",
     "InputError",
+    "InternalError",
     "LgdmError",
     "NotFittedError",
 ]
@@ -49,3 +50,9 @@ class CheckpointError(LgdmError):
 
 class DatasetError(LgdmError):
     """A dataset could not be opened or read, or a point cloud could not be processed."""
+
+
+class InternalError(LgdmError, RuntimeError):
+    """A bug inside lgdm (a Rust panic) interrupted a call. If the call was changing a model
+    (training, episode end, replay), the model may be half-updated, so it refuses every later
+    call with this error: load it again from a checkpoint. Please report the message."""

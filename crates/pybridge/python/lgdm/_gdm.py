@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import threading
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
@@ -226,8 +227,14 @@ class GDM:
       each call. An integer gives every sample that id (passing the same id in consecutive
       ``partial_fit`` calls continues the sequence, e.g. one frame per call); an array gives
       per-sample ids (integers ≥ 0). ``predict`` always starts its context afresh.
-    - The GIL is released while the Rust engine works. Concurrent ``predict`` calls on one model
-      are fine; training one model from two threads at once raises ``RuntimeError``.
+    - Threads: the GIL is released while the Rust engine works, and one model may be shared
+      between threads. Calls that change it (``partial_fit``, ``end_episode``, ``replay``) run
+      one at a time, each whole, in the order they get the model; calls that read it
+      (``predict``, ``evaluate``, ``score``, ``save``, ...) run in parallel with each other and
+      see the model between two changes, never in the middle of one. No call is lost. (Which of
+      two concurrent ``partial_fit`` calls goes first is up to the threads; force an order to
+      get a reproducible model.) ``fit`` replaces the model: calls still running on the old one
+      finish there.
     """
 
     def __init__(self, preset: str | None = "paper_incremental", **overrides: Any) -> None:
@@ -235,6 +242,9 @@ class GDM:
         self.preset = preset
         self._overrides = dict(overrides)
         self._model: _lgdm.Model | None = None
+        # Serialises the creation of the model by concurrent first partial_fit calls (the
+        # native model serialises everything after that).
+        self._create_lock = threading.Lock()
 
     # -- scikit-learn parameter protocol -------------------------------------------------------
 
@@ -283,9 +293,16 @@ class GDM:
         seq = _ids(sequence, n, "sequence")
         model = self._model
         if model is None:
-            model = _lgdm.Model(self._config, x.shape[1])
+            with self._create_lock:
+                model = self._model
+                if model is None:
+                    # The first call creates the model and trains it before publishing it, so
+                    # a failed first call leaves this GDM unfitted; concurrent first calls wait.
+                    model = _lgdm.Model(self._config, x.shape[1])
+                    self._last_stats = model.train(x, inst, cat, seq)
+                    self._model = model
+                    return self
         self._last_stats = model.train(x, inst, cat, seq)
-        self._model = model
         return self
 
     def fit(
