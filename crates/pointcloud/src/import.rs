@@ -1,60 +1,189 @@
 //! Import of user meshes from `<dir>/<category>/<instance>.{obj,stl,ply}`.
 //!
-//! Each mesh is checked (non-empty, finite, indices in range), converted to metres (a mesh
-//! whose largest extent exceeds 100 units is taken to be in millimetres, one between 2 and 100
-//! units in centimetres, otherwise metres), centred on the z axis and rested on z = 0 (z is
-//! up). Anything broken or empty gives a [`MeshImportError`] naming the file.
+//! Each mesh is checked (non-empty, finite, indices in range), converted to metres, centred on
+//! the z axis and rested on z = 0 (z is up). Anything broken or empty gives a
+//! [`MeshImportError`] naming the file.
+//!
+//! Units: a mesh file has no unit, so it is either given ([`MeshUnits`]: one unit for every
+//! file and/or one per file) or guessed from the size: the guess is the unit in which the
+//! mesh's largest extent is that of a household object, 2 cm to 60 cm
+//! ([`LengthUnit::plausible_units`]). Exactly one such unit → it is used and reported
+//! ([`ImportReport`]); two (an extent of 20 to 60 file units: 43 is a 43 mm golf ball or a
+//! 43 cm vase) or none → an error asking for the unit. Centimetres and metres never compete
+//! (a factor of 100 is more than the 30 between 2 cm and 60 cm); millimetres and centimetres
+//! do for extents of 20 to 60.
 //!
 //! ```no_run
-//! use lgdm_pointcloud::import::load_mesh_library;
-//! let objects = load_mesh_library("my_meshes".as_ref()).unwrap();
-//! println!("{} objects", objects.len());
+//! use lgdm_pointcloud::import::{LengthUnit, MeshUnits, load_mesh_library};
+//! let objects = load_mesh_library("my_meshes".as_ref(), &MeshUnits::guess()).unwrap();
+//! for o in &objects {
+//!     println!("{}: {}", o.report.file, o.report.describe());
+//! }
+//! let all_mm = MeshUnits::parse(&["mm"]).unwrap();
+//! assert_eq!(all_mm.all, Some(LengthUnit::Millimetre));
 //! ```
 
+use std::collections::BTreeMap;
+use std::fmt;
 use std::fs::File;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
 
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, rest_on_table};
 
+/// Lower limit of a plausible household object's largest extent, millimetres (20 mm).
+pub const MIN_OBJECT_EXTENT_MM: f64 = 20.0;
+/// Upper limit of a plausible household object's largest extent, millimetres (600 mm; the
+/// default turntable camera sees about 0.6 m top to bottom).
+pub const MAX_OBJECT_EXTENT_MM: f64 = 600.0;
+
 /// A mesh file (or directory) that could not be imported.
 #[derive(Debug, Clone, thiserror::Error)]
-#[error("mesh {}: {reason}", path.display())]
-pub struct MeshImportError {
-    /// The offending file or directory.
-    pub path: PathBuf,
-    /// What is wrong with it.
-    pub reason: String,
+pub enum MeshImportError {
+    /// The file or directory is unreadable, broken or empty.
+    #[error("mesh {}: {reason}", path.display())]
+    Invalid {
+        /// The offending file or directory.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The mesh's size fits more than one unit; the unit must be given.
+    #[error(
+        "mesh {}: cannot tell its unit: its largest extent, {} file units, is household-sized \
+         (2 cm to 60 cm) in more than one unit: {}; give the unit: --units mm|cm|m (every mesh) \
+         or --units {file}=mm|cm|m (this file); in Python units=",
+        path.display(), fmt_sig(f64::from(*largest_extent)),
+        describe_units(*largest_extent, candidates, " or ")
+    )]
+    AmbiguousUnit {
+        /// The mesh file.
+        path: PathBuf,
+        /// The file as `--units FILE=UNIT` names it (relative to the meshes directory; just the
+        /// file name from [`load_mesh`]).
+        file: String,
+        /// Largest extent of the bounding box, file units.
+        largest_extent: f32,
+        /// The units in which that extent is household-sized, smallest first.
+        candidates: Vec<LengthUnit>,
+    },
+    /// The mesh's size is household-sized in no unit; the unit must be given.
+    #[error(
+        "mesh {}: cannot tell its unit: its largest extent, {} file units, is household-sized \
+         (2 cm to 60 cm) in no unit: {}; give the unit: --units mm|cm|m (every mesh) or \
+         --units {file}=mm|cm|m (this file); in Python units=",
+        path.display(), fmt_sig(f64::from(*largest_extent)),
+        describe_units(*largest_extent, &LengthUnit::ALL, ", ")
+    )]
+    NoPlausibleUnit {
+        /// The mesh file.
+        path: PathBuf,
+        /// The file as `--units FILE=UNIT` names it (relative to the meshes directory; just the
+        /// file name from [`load_mesh`]).
+        file: String,
+        /// Largest extent of the bounding box, file units.
+        largest_extent: f32,
+    },
+    /// A unit was given for a file that is not in the meshes directory.
+    #[error(
+        "meshes {}: a unit is given for `{file}`, but there is no such mesh file (give files \
+         as <category>/<file>, e.g. `{example}`)",
+        dir.display()
+    )]
+    UnknownUnitFile {
+        /// The meshes directory.
+        dir: PathBuf,
+        /// The file named in the units.
+        file: String,
+        /// A file that exists, as an example of the naming.
+        example: String,
+    },
+}
+
+impl MeshImportError {
+    /// The file or directory the error is about.
+    pub fn path(&self) -> &Path {
+        match self {
+            MeshImportError::Invalid { path, .. }
+            | MeshImportError::AmbiguousUnit { path, .. }
+            | MeshImportError::NoPlausibleUnit { path, .. } => path,
+            MeshImportError::UnknownUnitFile { dir, .. } => dir,
+        }
+    }
 }
 
 fn fail(path: &Path, reason: impl Into<String>) -> MeshImportError {
-    MeshImportError {
+    MeshImportError::Invalid {
         path: path.to_path_buf(),
         reason: reason.into(),
     }
 }
 
-/// Units a mesh file was found to be in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// `x` with four significant digits, trailing zeros dropped (`43`, `0.043`, `1500`).
+fn fmt_sig(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 {
+        return format!("{x}");
+    }
+    let decimals = (3 - x.abs().log10().floor() as i64).clamp(0, 12) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+/// `43 mm = 0.043 m or 43 cm = 0.43 m`.
+fn describe_units(largest_extent: f32, units: &[LengthUnit], sep: &str) -> String {
+    let x = fmt_sig(f64::from(largest_extent));
+    units
+        .iter()
+        .map(|u| match u {
+            LengthUnit::Metre => format!("{x} m"),
+            _ => format!("{x} {u} = {} m", fmt_sig(u.extent_m(largest_extent))),
+        })
+        .collect::<Vec<_>>()
+        .join(sep)
+}
+
+/// Whether a largest extent of `mm` millimetres is a household object's, with a relative
+/// slack of 10⁻⁶ for f32 coordinates (`0.6` in a file is a hair over 0.6).
+fn plausible_mm(mm: f64) -> bool {
+    (MIN_OBJECT_EXTENT_MM * (1.0 - 1e-6)..=MAX_OBJECT_EXTENT_MM * (1.0 + 1e-6)).contains(&mm)
+}
+
+/// The unit of a mesh file's coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum LengthUnit {
-    /// Metres (largest extent ≤ 2).
+    /// Metres (`m`).
+    #[serde(rename = "m")]
     Metre,
-    /// Centimetres (largest extent in (2, 100]).
+    /// Centimetres (`cm`).
+    #[serde(rename = "cm")]
     Centimetre,
-    /// Millimetres (largest extent > 100).
+    /// Millimetres (`mm`).
+    #[serde(rename = "mm")]
     Millimetre,
 }
 
 impl LengthUnit {
-    /// Guesses the unit of a household object from its largest extent in file units.
-    pub fn detect(largest_extent: f32) -> Self {
-        if largest_extent > 100.0 {
-            LengthUnit::Millimetre
-        } else if largest_extent > 2.0 {
-            LengthUnit::Centimetre
-        } else {
-            LengthUnit::Metre
+    /// Every unit, smallest first.
+    pub const ALL: [LengthUnit; 3] = [
+        LengthUnit::Millimetre,
+        LengthUnit::Centimetre,
+        LengthUnit::Metre,
+    ];
+
+    /// `mm`, `cm` or `m`.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Metre => "m",
+            LengthUnit::Centimetre => "cm",
+            LengthUnit::Millimetre => "mm",
         }
     }
 
@@ -66,14 +195,209 @@ impl LengthUnit {
             LengthUnit::Millimetre => 0.001,
         }
     }
+
+    /// Millimetres per file unit (exact in f64).
+    fn millimetres(self) -> f64 {
+        match self {
+            LengthUnit::Metre => 1000.0,
+            LengthUnit::Centimetre => 10.0,
+            LengthUnit::Millimetre => 1.0,
+        }
+    }
+
+    /// `largest_extent` file units in metres.
+    fn extent_m(self, largest_extent: f32) -> f64 {
+        f64::from(largest_extent) * self.millimetres() / 1000.0
+    }
+
+    /// Whether `largest_extent` file units in this unit is a household object's size:
+    /// [`MIN_OBJECT_EXTENT_MM`] to [`MAX_OBJECT_EXTENT_MM`] (inclusive, give or take f32
+    /// rounding).
+    pub fn is_plausible(self, largest_extent: f32) -> bool {
+        plausible_mm(f64::from(largest_extent) * self.millimetres())
+    }
+
+    /// The units, smallest first, in which a mesh whose largest extent is `largest_extent`
+    /// file units is household-sized. The guess is the unit when there is exactly one.
+    pub fn plausible_units(largest_extent: f32) -> Vec<LengthUnit> {
+        LengthUnit::ALL
+            .into_iter()
+            .filter(|u| u.is_plausible(largest_extent))
+            .collect()
+    }
+}
+
+impl fmt::Display for LengthUnit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.symbol())
+    }
+}
+
+impl FromStr for LengthUnit {
+    type Err = String;
+
+    /// `mm`, `cm` or `m`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "mm" => Ok(LengthUnit::Millimetre),
+            "cm" => Ok(LengthUnit::Centimetre),
+            "m" => Ok(LengthUnit::Metre),
+            other => Err(format!("unknown unit `{other}` (expected mm, cm or m)")),
+        }
+    }
+}
+
+/// The units of a mesh library's files: one for every file, per-file exceptions, or (the
+/// default) guessed per file from its size.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshUnits {
+    /// The unit of every file not listed in `files` (default: guessed per file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub all: Option<LengthUnit>,
+    /// Units of single files, by path relative to the meshes directory (`ball/golf.obj`); they
+    /// take precedence over `all` (default: none).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub files: BTreeMap<String, LengthUnit>,
+}
+
+impl MeshUnits {
+    /// Every unit guessed (the default).
+    pub fn guess() -> MeshUnits {
+        MeshUnits::default()
+    }
+
+    /// Whether every unit is guessed (nothing given).
+    pub fn is_guess(&self) -> bool {
+        self.all.is_none() && self.files.is_empty()
+    }
+
+    /// Parses `--units` arguments: `UNIT` (every file) or `<category>/<file>=UNIT` (one
+    /// file), with `UNIT` one of `mm`, `cm`, `m`. Each file and the every-file unit may be
+    /// given once.
+    pub fn parse<S: AsRef<str>>(entries: &[S]) -> Result<MeshUnits, String> {
+        let mut units = MeshUnits::default();
+        for entry in entries {
+            let entry = entry.as_ref().trim();
+            match entry.rsplit_once('=') {
+                None => {
+                    let unit = entry.parse()?;
+                    if units.all.replace(unit).is_some() {
+                        return Err(format!(
+                            "the unit of every mesh is given twice (`{entry}`); give one, and \
+                             per-file units as <category>/<file>=UNIT"
+                        ));
+                    }
+                }
+                Some((file, unit)) => {
+                    let file = file.trim().to_string();
+                    let unit = unit.trim().parse().map_err(|e| format!("`{entry}`: {e}"))?;
+                    if units.files.insert(file.clone(), unit).is_some() {
+                        return Err(format!("the unit of `{file}` is given twice"));
+                    }
+                }
+            }
+        }
+        units.check()?;
+        Ok(units)
+    }
+
+    /// Checks the per-file names: `<category>/<file>` with `/`, inside the directory.
+    pub fn check(&self) -> Result<(), String> {
+        for file in self.files.keys() {
+            let parts: Vec<&str> = file.split('/').collect();
+            if parts.len() != 2
+                || parts
+                    .iter()
+                    .any(|p| p.is_empty() || *p == "." || *p == ".." || p.contains('\\'))
+            {
+                return Err(format!(
+                    "per-file unit for `{file}`: name the file as <category>/<file> relative to \
+                     the meshes directory (e.g. `mug/mug_01.obj`)"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The given unit of `file` (`<category>/<file>`) and where it came from, `None` when it
+    /// is to be guessed.
+    pub fn given(&self, file: &str) -> Option<(LengthUnit, UnitSource)> {
+        self.files
+            .get(file)
+            .map(|&u| (u, UnitSource::GivenForFile))
+            .or(self.all.map(|u| (u, UnitSource::Given)))
+    }
+}
+
+/// How a mesh's unit was chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnitSource {
+    /// Guessed from the size ([`LengthUnit::plausible_units`]).
+    Guessed,
+    /// Given for every mesh ([`MeshUnits::all`]).
+    Given,
+    /// Given for this file ([`MeshUnits::files`]).
+    GivenForFile,
+}
+
+/// What importing one mesh file found: its unit, how the unit was chosen and the resulting
+/// size. Recorded per instance in a dataset's manifest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ImportReport {
+    /// The mesh file, relative to the meshes directory (`cup/espresso.obj`).
+    pub file: String,
+    /// The unit of the file's coordinates.
+    pub unit: LengthUnit,
+    /// Guessed or given.
+    pub unit_source: UnitSource,
+    /// Largest extent of the imported mesh's bounding box, metres.
+    pub largest_extent_m: f32,
+}
+
+impl ImportReport {
+    /// Whether the imported size is a household object's (2 cm to 60 cm); always true for a
+    /// guessed unit, and worth a warning when false for a given one.
+    pub fn is_plausible(&self) -> bool {
+        LengthUnit::Metre.is_plausible(self.largest_extent_m)
+    }
+
+    /// `units mm (guessed), largest extent 0.062 m`.
+    pub fn describe(&self) -> String {
+        let source = match self.unit_source {
+            UnitSource::Guessed => "guessed",
+            UnitSource::Given => "given",
+            UnitSource::GivenForFile => "given for this file",
+        };
+        format!(
+            "units {} ({source}), largest extent {} m",
+            self.unit,
+            fmt_sig(f64::from(self.largest_extent_m))
+        )
+    }
+}
+
+/// An imported mesh: the object and how its unit was chosen.
+#[derive(Debug, Clone)]
+pub struct ImportedObject {
+    /// The object, metres.
+    pub object: ObjectModel,
+    /// Its file, unit and size.
+    pub report: ImportReport,
 }
 
 const EXTENSIONS: [&str; 3] = ["obj", "stl", "ply"];
 
 /// Loads every `<dir>/<category>/<instance>.{obj,stl,ply}` in sorted order (categories by
-/// directory name, instances by file name). Instance names are the file stems and must be
-/// unique across categories.
-pub fn load_mesh_library(dir: &Path) -> Result<Vec<ObjectModel>, MeshImportError> {
+/// directory name, instances by file name), in the units `units` gives or guesses. Instance
+/// names are the file stems and must be unique across categories; every file named in
+/// `units.files` must exist.
+pub fn load_mesh_library(
+    dir: &Path,
+    units: &MeshUnits,
+) -> Result<Vec<ImportedObject>, MeshImportError> {
+    units.check().map_err(|reason| fail(dir, reason))?;
     let sorted_entries = |d: &Path| -> Result<Vec<PathBuf>, MeshImportError> {
         let mut v: Vec<PathBuf> = std::fs::read_dir(d)
             .map_err(|e| fail(d, format!("cannot list: {e}")))?
@@ -85,8 +409,9 @@ pub fn load_mesh_library(dir: &Path) -> Result<Vec<ObjectModel>, MeshImportError
         v.sort();
         Ok(v)
     };
-    let mut objects: Vec<ObjectModel> = Vec::new();
-    let mut sources: Vec<PathBuf> = Vec::new();
+    // First the files (category, instance name, `<category>/<file>`, path), so that a unit
+    // given for a file that is not there is reported before any mesh is read.
+    let mut found: Vec<(String, String, String, PathBuf)> = Vec::new();
     for cat_dir in sorted_entries(dir)?.into_iter().filter(|p| p.is_dir()) {
         let category = cat_dir
             .file_name()
@@ -96,7 +421,7 @@ pub fn load_mesh_library(dir: &Path) -> Result<Vec<ObjectModel>, MeshImportError
         if category.starts_with('.') {
             continue;
         }
-        let mut found = 0;
+        let before = found.len();
         for file in sorted_entries(&cat_dir)? {
             let ext = file
                 .extension()
@@ -105,47 +430,92 @@ pub fn load_mesh_library(dir: &Path) -> Result<Vec<ObjectModel>, MeshImportError
             if !file.is_file() || !ext.as_deref().is_some_and(|e| EXTENSIONS.contains(&e)) {
                 continue;
             }
-            let name = file
-                .file_stem()
-                .and_then(|n| n.to_str())
-                .ok_or_else(|| fail(&file, "file name is not UTF-8"))?
-                .to_string();
-            if let Some(k) = objects.iter().position(|o| o.name == name) {
+            let (Some(name), Some(file_name)) = (
+                file.file_stem().and_then(|n| n.to_str()),
+                file.file_name().and_then(|n| n.to_str()),
+            ) else {
+                return Err(fail(&file, "file name is not UTF-8"));
+            };
+            if let Some(other) = found.iter().find(|f| f.1 == name) {
                 return Err(fail(
                     &file,
                     format!(
                         "instance name `{name}` is also used by {}",
-                        sources[k].display()
+                        other.3.display()
                     ),
                 ));
             }
-            let (mesh, _) = load_mesh(&file)?;
-            objects.push(ObjectModel {
-                name,
-                category: category.clone(),
-                mesh,
-            });
-            sources.push(file);
-            found += 1;
+            let key = format!("{category}/{file_name}");
+            found.push((category.clone(), name.to_string(), key, file));
         }
-        if found == 0 {
+        if found.len() == before {
             return Err(fail(
                 &cat_dir,
                 "category directory holds no .obj, .stl or .ply file",
             ));
         }
     }
-    if objects.is_empty() {
+    if found.is_empty() {
         return Err(fail(
             dir,
             "no category directories with meshes (expected <dir>/<category>/<instance>.obj|stl|ply)",
         ));
     }
-    Ok(objects)
+    if let Some(file) = units
+        .files
+        .keys()
+        .find(|f| !found.iter().any(|(_, _, key, _)| key == *f))
+    {
+        return Err(MeshImportError::UnknownUnitFile {
+            dir: dir.to_path_buf(),
+            file: file.clone(),
+            example: found[0].2.clone(),
+        });
+    }
+    found
+        .into_iter()
+        .map(|(category, name, key, path)| {
+            let given = units.given(&key);
+            let (mesh, report) = import_mesh(&path, key, given)?;
+            Ok(ImportedObject {
+                object: ObjectModel {
+                    name,
+                    category,
+                    mesh,
+                },
+                report,
+            })
+        })
+        .collect()
 }
 
-/// Loads one mesh file, converts it to metres, centres it and rests it on z = 0.
+/// Loads one mesh file, guessing its unit ([`LengthUnit::plausible_units`]; an ambiguous or
+/// implausible size is an error), converts it to metres, centres it and rests it on z = 0.
 pub fn load_mesh(path: &Path) -> Result<(Mesh, LengthUnit), MeshImportError> {
+    let (mesh, report) = import_mesh(path, file_label(path), None)?;
+    Ok((mesh, report.unit))
+}
+
+/// Loads one mesh file whose coordinates are in `unit`, converts it to metres, centres it and
+/// rests it on z = 0.
+pub fn load_mesh_in(path: &Path, unit: LengthUnit) -> Result<Mesh, MeshImportError> {
+    let (mesh, _) = import_mesh(path, file_label(path), Some((unit, UnitSource::Given)))?;
+    Ok(mesh)
+}
+
+fn file_label(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+/// Reads, checks, converts (given unit or guessed), centres and rests one mesh file; `file` is
+/// how reports and errors name it.
+fn import_mesh(
+    path: &Path,
+    file: String,
+    given: Option<(LengthUnit, UnitSource)>,
+) -> Result<(Mesh, ImportReport), MeshImportError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -164,16 +534,51 @@ pub fn load_mesh(path: &Path) -> Result<(Mesh, LengthUnit), MeshImportError> {
     check_mesh(path, &mesh)?;
     let (lo, hi) = mesh.bounds().ok_or_else(|| fail(path, "no vertices"))?;
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+    if !extent.is_finite() {
+        return Err(fail(path, "coordinates too large (the extent overflows)"));
+    }
     if extent <= 0.0 {
         return Err(fail(path, "all vertices coincide (zero size)"));
     }
-    let unit = LengthUnit::detect(extent);
+    let (unit, unit_source) = match given {
+        Some(g) => g,
+        None => match LengthUnit::plausible_units(extent)[..] {
+            [unit] => (unit, UnitSource::Guessed),
+            [] => {
+                return Err(MeshImportError::NoPlausibleUnit {
+                    path: path.to_path_buf(),
+                    file,
+                    largest_extent: extent,
+                });
+            }
+            ref candidates => {
+                return Err(MeshImportError::AmbiguousUnit {
+                    path: path.to_path_buf(),
+                    file,
+                    largest_extent: extent,
+                    candidates: candidates.to_vec(),
+                });
+            }
+        },
+    };
     let s = unit.metres();
     if s != 1.0 {
         mesh.scale_xyz([s, s, s]);
     }
     rest_on_table(&mut mesh);
-    Ok((mesh, unit))
+    let largest_extent_m = mesh
+        .bounds()
+        .map(|(lo, hi)| (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max))
+        .unwrap_or(0.0);
+    Ok((
+        mesh,
+        ImportReport {
+            file,
+            unit,
+            unit_source,
+            largest_extent_m,
+        },
+    ))
 }
 
 /// Checks that a mesh has triangles, finite vertices and in-range indices.
@@ -237,9 +642,21 @@ fn load_obj(path: &Path) -> Result<Mesh, MeshImportError> {
         ..Default::default()
     };
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let (models, materials) =
-        tobj::load_obj_buf(&mut reader, &options, |mtl| tobj::load_mtl(base.join(mtl)))
-            .map_err(|e| fail(path, format!("invalid OBJ: {e}")))?;
+    // tobj 4.0 multiplies face indices unchecked (`vn * 3 + 2`): with overflow checks (debug
+    // builds) a huge normal or texture index panics. A panic there is an invalid file.
+    let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, |mtl| {
+            // Only a regular file of at most 16 MiB: `mtllib /dev/zero` (or a FIFO) would be
+            // read without end. Anything else leaves the default colour, as a missing file does.
+            let mtl = base.join(mtl);
+            match std::fs::metadata(&mtl) {
+                Ok(meta) if meta.is_file() && meta.len() <= 16 << 20 => tobj::load_mtl(mtl),
+                _ => Err(tobj::LoadError::OpenFileFailed),
+            }
+        })
+    }))
+    .map_err(|_| fail(path, "invalid OBJ: a face index out of range"))?;
+    let (models, materials) = loaded.map_err(|e| fail(path, format!("invalid OBJ: {e}")))?;
     let materials = materials.unwrap_or_default();
     let fallback = default_color(path);
     let mut mesh = Mesh::new();

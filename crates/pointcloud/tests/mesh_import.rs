@@ -1,11 +1,11 @@
 //! User meshes import from `<dir>/<category>/<instance>.{obj,stl,ply}` in metres (millimetre
-//! and centimetre files detected), centred and resting on the table; broken or empty meshes
-//! give errors naming the file, never panics.
+//! and centimetre files of unambiguous size detected; see mesh_units.rs), centred and resting
+//! on the table; broken or empty meshes give errors naming the file, never panics.
 
 use std::path::Path;
 
 use lgdm_pointcloud::dataset::{Dataset, DatasetSpec, generate, standard_collections};
-use lgdm_pointcloud::import::{LengthUnit, load_mesh, load_mesh_library};
+use lgdm_pointcloud::import::{LengthUnit, MeshUnits, load_mesh, load_mesh_library};
 use lgdm_pointcloud::mesh::Mesh;
 
 /// An OBJ box of `size` (file units) with its minimum corner at `offset`.
@@ -127,7 +127,7 @@ fn library_layout_errors_and_generation_from_meshes() {
     // Empty root: error naming the directory.
     std::fs::create_dir_all(&meshes).unwrap();
     assert!(
-        load_mesh_library(&meshes)
+        load_mesh_library(&meshes, &MeshUnits::guess())
             .unwrap_err()
             .to_string()
             .contains("meshes")
@@ -145,10 +145,10 @@ fn library_layout_errors_and_generation_from_meshes() {
         obj_box([200.0, 100.0, 60.0], [0.0; 3]),
     );
     write(&meshes.join("bricks/readme.txt"), "not a mesh");
-    let lib = load_mesh_library(&meshes).unwrap();
+    let lib = load_mesh_library(&meshes, &MeshUnits::guess()).unwrap();
     let names: Vec<_> = lib
         .iter()
-        .map(|o| (o.category.as_str(), o.name.as_str()))
+        .map(|o| (o.object.category.as_str(), o.object.name.as_str()))
         .collect();
     assert_eq!(
         names,
@@ -173,7 +173,7 @@ fn library_layout_errors_and_generation_from_meshes() {
         obj_box([0.1, 0.1, 0.1], [0.0; 3]),
     );
     assert!(
-        load_mesh_library(&meshes)
+        load_mesh_library(&meshes, &MeshUnits::guess())
             .unwrap_err()
             .to_string()
             .contains("tall")

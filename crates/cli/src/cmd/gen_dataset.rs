@@ -1,11 +1,13 @@
 //! `lgdm gen-dataset`: generate a sequential point-cloud dataset (MCAP collections, manifest,
-//! grasp-labelled images, preview PNGs) from a preset, optionally with user meshes.
+//! grasp-labelled images, preview PNGs) from a preset, optionally with user meshes (their
+//! units given with `--units` or guessed, and printed per mesh either way).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use lgdm_pointcloud::dataset::{self, DatasetSpec, Progress};
+use lgdm_pointcloud::import::MeshUnits;
 
 use crate::progress::{ProgressMode, Reporter};
 
@@ -30,6 +32,12 @@ pub struct Args {
     /// Use meshes from <DIR>/<category>/<instance>.{obj,stl,ply} instead of procedural objects.
     #[arg(long, value_name = "DIR")]
     pub meshes: Option<PathBuf>,
+    /// Units of the --meshes files: `mm`, `cm` or `m` for every file, and/or
+    /// `<category>/<file>=UNIT` for one file (repeatable). Without it each file's unit is
+    /// guessed from its size (household objects are 2 cm to 60 cm) and printed; a size that fits
+    /// two units (20 to 60 file units: mm or cm) is an error asking for --units.
+    #[arg(long, value_name = "[FILE=]UNIT", requires = "meshes")]
+    pub units: Vec<String>,
     /// Seed of every random choice; same seed, same bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -60,6 +68,8 @@ pub fn run(args: Args) -> Result<()> {
         spec.grasp_images = n;
     }
     spec.meshes = args.meshes.clone();
+    spec.mesh_units =
+        MeshUnits::parse(&args.units).map_err(|reason| anyhow::anyhow!("--units: {reason}"))?;
     spec.validate()?;
     dataset::check_output_dir(&args.out).context("choose another --out")?;
     let started = Instant::now();
@@ -77,6 +87,24 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .filter(|c| c.split == dataset::Split::Train)
         .count();
+    for report in manifest.instances.iter().filter_map(|i| i.import.as_ref()) {
+        reporter.event(&serde_json::json!({
+            "event": "mesh",
+            "file": report.file,
+            "unit": report.unit.symbol(),
+            "unit_source": report.unit_source,
+            "largest_extent_m": report.largest_extent_m,
+            "plausible": report.is_plausible(),
+        }));
+        if args.progress != ProgressMode::Jsonl {
+            let warning = if report.is_plausible() {
+                ""
+            } else {
+                " (not the 2 cm to 60 cm of a household object: check --units)"
+            };
+            println!("mesh {}: {}{warning}", report.file, report.describe());
+        }
+    }
     reporter.event(&serde_json::json!({
         "event": "done",
         "out": args.out.display().to_string(),

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::DatasetError;
 use crate::augment::Augmentation;
 use crate::grasp::GraspSpec;
+use crate::import::MeshUnits;
 use crate::math::look_at;
 use crate::objects::CATEGORIES;
 use crate::render::{Camera, Intrinsics};
@@ -105,6 +106,10 @@ pub struct DatasetSpec {
     pub instances_per_category: usize,
     /// Import meshes from `<dir>/<category>/<instance>.{obj,stl,ply}` instead of procedural ones.
     pub meshes: Option<PathBuf>,
+    /// Units of the mesh files (default: guessed per file from its size, see
+    /// [`crate::import`]). Only with `meshes`; not written when left to the guess.
+    #[serde(default, skip_serializing_if = "MeshUnits::is_guess")]
+    pub mesh_units: MeshUnits,
     /// The collections, one file each (paper: 15, 12 train / 3 test).
     pub collections: Vec<CollectionSpec>,
     /// Views per object sequence (paper: 100).
@@ -223,6 +228,7 @@ impl DatasetSpec {
             categories: CATEGORIES.iter().map(|s| s.to_string()).collect(),
             instances_per_category: 3,
             meshes: None,
+            mesh_units: MeshUnits::guess(),
             collections: standard_collections(),
             frames_per_sequence: 10,
             fps: 2.5,
@@ -266,6 +272,15 @@ impl DatasetSpec {
     pub fn validate(&self) -> Result<(), DatasetError> {
         let bad =
             |field: &'static str, reason: String| Err(DatasetError::InvalidSpec { field, reason });
+        if self.meshes.is_none() && !self.mesh_units.is_guess() {
+            return bad(
+                "mesh_units",
+                "units are given but there are no meshes (they apply to --meshes only)".into(),
+            );
+        }
+        if let Err(reason) = self.mesh_units.check() {
+            return bad("mesh_units", reason);
+        }
         if self.meshes.is_none() {
             if self.categories.is_empty() {
                 return bad("categories", "no categories".into());
