@@ -7,6 +7,12 @@
 //! ([`feature_key`]) changes when the encoder, its parameters, this crate's version, the
 //! manifest or any collection file (size, modification time) changes.
 //!
+//! A cached table is used only if it still describes the dataset
+//! ([`FeatureTable::check_dataset`]: exact dtypes, one row per view, labels consistent with the
+//! manifest, the encoder's dimension, finite values). Anything else — an unreadable file, 10
+//! columns instead of 675, a missing row, category 99, a NaN — is reported (path and reason)
+//! and the table is computed again and rewritten (temp file + rename).
+//!
 //! ```no_run
 //! use lgdm_pointcloud::cache::{self, FeatureCache};
 //! use lgdm_pointcloud::dataset::Dataset;
@@ -26,6 +32,8 @@ use crate::features::{FeatureTable, good_features};
 pub const DEFAULT_DATASET_SEED: u64 = 0;
 /// Bins per side of the GOOD descriptor's projections that `lgdm` uses (15 → 675 values).
 pub const GOOD_BINS: usize = 15;
+/// Feature length of the GOOD descriptor with [`GOOD_BINS`]: `3 × 15² = 675`.
+pub const GOOD_DIM: usize = 3 * GOOD_BINS * GOOD_BINS;
 
 fn io_error(path: &Path, source: std::io::Error) -> DatasetError {
     DatasetError::Io {
@@ -76,6 +84,7 @@ pub fn default_dataset(
     let spec = DatasetSpec::small(DEFAULT_DATASET_SEED);
     let parent = dir.parent().expect("joined path has a parent");
     std::fs::create_dir_all(parent).map_err(|e| io_error(parent, e))?;
+    remove_stale_temp_dirs(parent);
     let tmp = parent.join(format!(
         ".tmp-{}-{}",
         std::process::id(),
@@ -83,9 +92,6 @@ pub fn default_dataset(
             .expect("joined path has a name")
             .to_string_lossy()
     ));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).ok();
-    }
     if let Err(err) = dataset::generate(&spec, &tmp, progress) {
         std::fs::remove_dir_all(&tmp).ok();
         return Err(err);
@@ -98,6 +104,24 @@ pub fn default_dataset(
             Ok(dir)
         }
         Err(e) => Err(io_error(&dir, e)),
+    }
+}
+
+/// Removes the temporary dataset directories (`.tmp-*`) under `datasets` whose generating
+/// process is gone (killed part way): a directory is stale when its lock can be taken. A
+/// directory another live process is still generating keeps its lock and is left alone.
+fn remove_stale_temp_dirs(datasets: &Path) {
+    let Ok(entries) = std::fs::read_dir(datasets) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let stale = entry.file_name().to_string_lossy().starts_with(".tmp-")
+            && path.is_dir()
+            && matches!(crate::DirLock::try_acquire(&path), Ok(Some(_)));
+        if stale {
+            std::fs::remove_dir_all(&path).ok();
+        }
     }
 }
 
@@ -164,8 +188,10 @@ impl FeatureCache {
     }
 
     /// The cached table of `ds` for `encoder` (with its `extra` identity, see [`feature_key`]),
-    /// or `compute()`'s, which is then stored. A cache file that cannot be read is reported to
-    /// `on_broken` (path, reason) and replaced.
+    /// or `compute()`'s, which is then stored. A cache file that cannot be read or does not
+    /// describe `ds` ([`FeatureTable::check_dataset`], any number of columns) is reported to
+    /// `on_broken` (path, reason) and replaced. Prefer
+    /// [`FeatureCache::get_or_compute_with_dim`], which also checks the feature length.
     pub fn get_or_compute<E: From<DatasetError>>(
         &self,
         ds: &Dataset,
@@ -174,15 +200,58 @@ impl FeatureCache {
         compute: impl FnOnce() -> Result<FeatureTable, E>,
         on_broken: &mut dyn FnMut(&Path, String),
     ) -> Result<FeatureTable, E> {
+        self.get_or_compute_checked(ds, encoder, extra, None, compute, on_broken)
+    }
+
+    /// [`FeatureCache::get_or_compute`] for an encoder that gives `dim` values per view: a
+    /// cached table with another number of columns is reported and replaced too, and a
+    /// computed table that does not describe `ds` with `dim` columns is an error
+    /// ([`DatasetError::FeatureTable`]) and is not stored.
+    pub fn get_or_compute_with_dim<E: From<DatasetError>>(
+        &self,
+        ds: &Dataset,
+        encoder: &str,
+        extra: &[&[u8]],
+        dim: usize,
+        compute: impl FnOnce() -> Result<FeatureTable, E>,
+        on_broken: &mut dyn FnMut(&Path, String),
+    ) -> Result<FeatureTable, E> {
+        self.get_or_compute_checked(ds, encoder, extra, Some(dim), compute, on_broken)
+    }
+
+    fn get_or_compute_checked<E: From<DatasetError>>(
+        &self,
+        ds: &Dataset,
+        encoder: &str,
+        extra: &[&[u8]],
+        dim: Option<usize>,
+        compute: impl FnOnce() -> Result<FeatureTable, E>,
+        on_broken: &mut dyn FnMut(&Path, String),
+    ) -> Result<FeatureTable, E> {
         let key = feature_key(ds, encoder, extra)?;
         let path = self.dir.join(format!("{key:016x}-{encoder}.npz"));
         if path.is_file() {
-            match FeatureTable::read_npz(&path) {
-                Ok(t) => return Ok(t),
+            match FeatureTable::read_npz_exact(&path) {
+                Ok(t) => match t.check_dataset(ds.manifest(), dim) {
+                    Ok(()) => return Ok(t),
+                    Err(reason) => on_broken(
+                        &path,
+                        format!(
+                            "does not match the dataset {}: {reason}",
+                            ds.dir().display()
+                        ),
+                    ),
+                },
                 Err(e) => on_broken(&path, e.to_string()),
             }
         }
         let table = compute()?;
+        table
+            .check_dataset(ds.manifest(), dim)
+            .map_err(|reason| DatasetError::FeatureTable {
+                dataset: ds.dir().to_path_buf(),
+                reason: format!("the `{encoder}` encoder's table: {reason}"),
+            })?;
         std::fs::create_dir_all(&self.dir).map_err(|e| io_error(&self.dir, e))?;
         table
             .write_npz(&path)
@@ -196,10 +265,11 @@ impl FeatureCache {
         ds: &Dataset,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<FeatureTable, DatasetError> {
-        self.get_or_compute(
+        self.get_or_compute_with_dim(
             ds,
             "good",
             &[],
+            GOOD_DIM,
             || good_features(ds, GOOD_BINS, progress),
             &mut |_, _| {},
         )

@@ -14,10 +14,14 @@
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::dataset::{Dataset, DatasetError};
+use crate::dataset::{Dataset, DatasetError, Manifest};
 use crate::good::good_descriptor_into;
 use crate::npz::{NpyRef, NpzError, read_npz, write_npz};
 use crate::progress::{Progress, par_map_with_progress};
+
+/// The largest `features` array a table may hold, in bytes: 4 GiB - 1, what an `.npz` without
+/// zip64 holds ([`crate::npz::write_npz`]).
+pub const MAX_TABLE_BYTES: u64 = u32::MAX as u64;
 
 /// Features of many views with their labels; row `i` belongs to `collection[i]`,
 /// `category[i]`, `instance[i]`, `sequence[i]` (unique per collection × object) and `frame[i]`.
@@ -124,11 +128,41 @@ impl FeatureTable {
     /// Reads a table written by [`FeatureTable::write_npz`] (or by numpy with the same array
     /// names; integer label arrays of any integer dtype are accepted).
     pub fn read_npz(path: &Path) -> Result<FeatureTable, NpzError> {
+        Self::read_npz_checked(path, false)
+    }
+
+    /// [`FeatureTable::read_npz`] that also requires exactly the dtypes
+    /// [`FeatureTable::write_npz`] writes (`features` float32, `sequence` uint64, the other
+    /// labels uint32): for files this crate wrote itself, such as the feature cache.
+    pub fn read_npz_exact(path: &Path) -> Result<FeatureTable, NpzError> {
+        Self::read_npz_checked(path, true)
+    }
+
+    fn read_npz_checked(path: &Path, exact_dtypes: bool) -> Result<FeatureTable, NpzError> {
         let format = |reason: String| NpzError::Format {
             path: path.to_path_buf(),
             reason,
         };
         let arrays = read_npz(path)?;
+        if exact_dtypes {
+            for (name, dtype) in [
+                ("features", "<f4"),
+                ("collection", "<u4"),
+                ("category", "<u4"),
+                ("instance", "<u4"),
+                ("sequence", "<u8"),
+                ("frame", "<u4"),
+            ] {
+                if let Some(a) = arrays.iter().find(|a| a.name == name)
+                    && a.data.dtype() != dtype
+                {
+                    return Err(format(format!(
+                        "`{name}` has dtype {}, expected {dtype}",
+                        a.data.dtype()
+                    )));
+                }
+            }
+        }
         let get = |name: &str| {
             arrays
                 .iter()
@@ -173,26 +207,129 @@ impl FeatureTable {
             frame: small("frame")?,
         })
     }
+
+    /// Checks that the table describes `manifest`'s dataset: the column lengths
+    /// ([`FeatureTable::check`]), `dim` columns when given (else at least one), one row per
+    /// view (`manifest.views` rows, each collection × instance × frame exactly once), labels
+    /// in range and consistent with the manifest (the instance's category, the sequence id
+    /// [`Manifest::sequence_id`]) and finite features. The error names the first bad row.
+    pub fn check_dataset(&self, manifest: &Manifest, dim: Option<usize>) -> Result<(), String> {
+        self.check()?;
+        match dim {
+            Some(d) if self.dim != d => {
+                return Err(format!(
+                    "`features` has {} columns, the encoder gives {d}",
+                    self.dim
+                ));
+            }
+            None if self.dim == 0 => return Err("`features` has no columns".into()),
+            _ => {}
+        }
+        let n = self.len();
+        if n as u64 != manifest.views {
+            return Err(format!(
+                "{n} rows, the dataset has {} views",
+                manifest.views
+            ));
+        }
+        let frames = manifest.frames_per_sequence as u64;
+        let mut seen = vec![false; n];
+        for i in 0..n {
+            let (c, cat, inst) = (self.collection[i], self.category[i], self.instance[i]);
+            let (seq, f) = (self.sequence[i], self.frame[i]);
+            if c as usize >= manifest.collections.len() {
+                return Err(format!(
+                    "row {i}: collection {c} out of range (the dataset has {})",
+                    manifest.collections.len()
+                ));
+            }
+            let Some(info) = manifest.instances.get(inst as usize) else {
+                return Err(format!(
+                    "row {i}: instance {inst} out of range (the dataset has {})",
+                    manifest.instances.len()
+                ));
+            };
+            if cat as usize >= manifest.categories.len() {
+                return Err(format!(
+                    "row {i}: category {cat} out of range (the dataset has {})",
+                    manifest.categories.len()
+                ));
+            }
+            if cat != info.category {
+                return Err(format!(
+                    "row {i}: category {cat}, but instance {inst} is of category {}",
+                    info.category
+                ));
+            }
+            let want = manifest.sequence_id(c, inst);
+            if seq != want {
+                return Err(format!(
+                    "row {i}: sequence {seq}, but collection {c}, instance {inst} is sequence {want}"
+                ));
+            }
+            if u64::from(f) >= frames {
+                return Err(format!(
+                    "row {i}: frame {f} out of range ({frames} frames per sequence)"
+                ));
+            }
+            let view = seq
+                .checked_mul(frames)
+                .and_then(|v| v.checked_add(u64::from(f)))
+                .and_then(|v| usize::try_from(v).ok())
+                .filter(|&v| v < n)
+                .ok_or_else(|| {
+                    format!("row {i}: view (sequence {seq}, frame {f}) beyond the {n} views")
+                })?;
+            if std::mem::replace(&mut seen[view], true) {
+                return Err(format!(
+                    "row {i}: collection {c}, instance {inst}, frame {f} appears twice"
+                ));
+            }
+        }
+        if let Some(k) = self.features.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "row {}, column {}: feature value {} is not finite",
+                k / self.dim,
+                k % self.dim,
+                self.features[k]
+            ));
+        }
+        Ok(())
+    }
 }
 
-/// GOOD descriptors (`bins` per side, `3 × bins²` values) of every view of every collection, in
-/// collection, file and frame order. Collections are processed in parallel (rayon); the result
-/// does not depend on the number of threads. `progress` is called on the calling thread.
+/// GOOD descriptors (`bins` per side, in `1..=`[`MAX_BINS`](crate::good::MAX_BINS); `3 × bins²`
+/// values) of every view of every collection, in collection, file and frame order. Collections
+/// are processed in parallel (rayon); the result does not depend on the number of threads.
+/// `progress` is called on the calling thread. A table larger than [`MAX_TABLE_BYTES`] (e.g.
+/// more than 69 bins for the 75,000 views of the paper preset) is refused before any work.
 pub fn good_features(
     ds: &Dataset,
     bins: usize,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<FeatureTable, DatasetError> {
-    if bins == 0 {
+    if crate::good::check_bins(bins).is_err() {
         return Err(DatasetError::InvalidSpec {
             field: "bins",
-            reason: "must be at least 1".into(),
+            reason: format!("must be in 1..={} (got {bins})", crate::good::MAX_BINS),
         });
     }
     let manifest = ds.manifest();
     let n_coll = manifest.collections.len();
     let dim = 3 * bins * bins;
     let total = manifest.views;
+    // The whole table must fit in memory and in an `.npz` (no zip64): refuse before computing.
+    let bytes = total.saturating_mul(4 * dim as u64);
+    if bytes > MAX_TABLE_BYTES {
+        return Err(DatasetError::InvalidSpec {
+            field: "bins",
+            reason: format!(
+                "{total} views × {dim} values ({bins} bins) need {:.1} GiB, more than a feature \
+                 table holds (4 GiB, the .npz limit); use fewer bins",
+                bytes as f64 / f64::from(1u32 << 30),
+            ),
+        });
+    }
     let cancel = AtomicBool::new(false);
     let mut done = 0;
     let parts = par_map_with_progress(

@@ -85,6 +85,55 @@ impl Seek for AtomicFile {
     }
 }
 
+/// Name of the lock file that keeps two writers out of one directory (run or dataset).
+pub const LOCK_FILE: &str = ".lgdm.lock";
+
+/// An exclusive lock on a directory, held until it is dropped or the process ends (however it
+/// ends: the operating system releases it, so a killed writer never leaves a stale lock).
+#[derive(Debug)]
+pub struct DirLock {
+    file: std::fs::File,
+    path: PathBuf,
+}
+
+impl DirLock {
+    /// Creates `dir` if needed and locks it through its [`LOCK_FILE`]; `Ok(None)` when another
+    /// process holds the lock.
+    pub fn try_acquire(dir: &Path) -> io::Result<Option<DirLock>> {
+        std::fs::create_dir_all(dir)?;
+        let path = dir.join(LOCK_FILE);
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)?;
+        match file.try_lock() {
+            Ok(()) => Ok(Some(DirLock { file, path })),
+            Err(std::fs::TryLockError::WouldBlock) => Ok(None),
+            Err(std::fs::TryLockError::Error(e)) => Err(e),
+        }
+    }
+
+    /// Whether another process holds `dir`'s lock right now (a lock file left by a process that
+    /// ended is not held).
+    pub fn is_held(dir: &Path) -> bool {
+        let Ok(file) = std::fs::OpenOptions::new()
+            .write(true)
+            .open(dir.join(LOCK_FILE))
+        else {
+            return false;
+        };
+        matches!(file.try_lock(), Err(std::fs::TryLockError::WouldBlock))
+    }
+
+    /// Removes the lock file and releases the lock (the directory is complete).
+    pub fn remove(self) -> io::Result<()> {
+        std::fs::remove_file(&self.path)?;
+        drop(self.file);
+        Ok(())
+    }
+}
+
 /// Writes `path` atomically: `write` fills a buffered temporary file (seekable, for formats
 /// such as TIFF that patch offsets), which is then synced and renamed over `path`. On error the
 /// temporary file is removed and `path` is untouched.

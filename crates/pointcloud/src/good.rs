@@ -13,6 +13,10 @@
 //! The result does not depend on the pose of the input (rigid motions) and, up to sampling
 //! noise, not on the number of points.
 //!
+//! `bins` must lie in `1..=`[`MAX_BINS`] (256: 196,608 values, far finer than any point cloud
+//! fills); [`check_bins`] is the one check, used by every entry point (the cli's `--bins`,
+//! Python's `good_descriptor` / `good_features`) before anything is allocated.
+//!
 //! ```
 //! use lgdm_pointcloud::good::good_descriptor;
 //! let points: Vec<[f32; 3]> = (0..500)
@@ -28,15 +32,38 @@ use nalgebra::{Matrix3, Vector3};
 /// Margin added to the largest extent for the projection square, metres.
 pub const GOOD_MARGIN_M: f64 = 0.02;
 
+/// The largest number of bins per projection side: 256 (3 × 256² = 196,608 values, 768 KiB per
+/// descriptor). A view of a few thousand points leaves almost every cell of a finer grid empty.
+pub const MAX_BINS: usize = 256;
+
+/// Checks a bin count against `1..=`[`MAX_BINS`].
+pub fn check_bins(bins: usize) -> Result<(), GoodError> {
+    if (1..=MAX_BINS).contains(&bins) {
+        Ok(())
+    } else {
+        Err(GoodError::InvalidBins(bins))
+    }
+}
+
 /// Errors of [`good_descriptor`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GoodError {
     /// The cloud has no points.
     #[error("GOOD descriptor of an empty point cloud")]
     Empty,
-    /// `bins` must be at least 1.
-    #[error("GOOD needs at least one bin per side (got {0})")]
+    /// `bins` is outside `1..=`[`MAX_BINS`].
+    #[error("GOOD parameter `bins` must be in 1..={MAX_BINS} (got {0})")]
     InvalidBins(usize),
+    /// The output buffer of [`good_descriptor_into`] does not hold `3 × bins²` values.
+    #[error("GOOD output buffer holds {got} values, `bins` = {bins} needs {expected}")]
+    OutputLength {
+        /// The bins per side.
+        bins: usize,
+        /// `3 × bins²`.
+        expected: usize,
+        /// The buffer's length.
+        got: usize,
+    },
     /// A coordinate is NaN or infinite.
     #[error("point {index} has a non-finite coordinate")]
     NonFinite {
@@ -47,28 +74,30 @@ pub enum GoodError {
 
 /// The GOOD descriptor of `points` (metres, any frame) with `bins × bins` cells per projection.
 pub fn good_descriptor(points: &[[f32; 3]], bins: usize) -> Result<Vec<f32>, GoodError> {
+    check_bins(bins)?;
     let mut out = vec![0.0f32; 3 * bins * bins];
     good_descriptor_into(points, bins, &mut out)?;
     Ok(out)
 }
 
-/// [`good_descriptor`] writing into `out` (length `3 × bins²`), to reuse buffers.
+/// [`good_descriptor`] writing into `out` (length `3 × bins²`, else
+/// [`GoodError::OutputLength`]), to reuse buffers.
 pub fn good_descriptor_into(
     points: &[[f32; 3]],
     bins: usize,
     out: &mut [f32],
 ) -> Result<(), GoodError> {
-    if bins == 0 {
-        return Err(GoodError::InvalidBins(bins));
-    }
+    check_bins(bins)?;
     if points.is_empty() {
         return Err(GoodError::Empty);
     }
-    assert_eq!(
-        out.len(),
-        3 * bins * bins,
-        "output buffer length must be 3 × bins²"
-    );
+    if out.len() != 3 * bins * bins {
+        return Err(GoodError::OutputLength {
+            bins,
+            expected: 3 * bins * bins,
+            got: out.len(),
+        });
+    }
     if let Some(index) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
         return Err(GoodError::NonFinite { index });
     }
@@ -197,6 +226,14 @@ mod tests {
             Err(GoodError::InvalidBins(0))
         );
         assert_eq!(
+            good_descriptor_into(&[[0.0; 3]], 2, &mut [0.0; 11]),
+            Err(GoodError::OutputLength {
+                bins: 2,
+                expected: 12,
+                got: 11
+            })
+        );
+        assert_eq!(
             good_descriptor(&[[0.0; 3], [f32::NAN, 0.0, 0.0]], 15),
             Err(GoodError::NonFinite { index: 1 })
         );
@@ -204,5 +241,22 @@ mod tests {
         let d = good_descriptor(&[[0.1, 0.2, 0.3]], 5).unwrap();
         assert_eq!(d.len(), 75);
         assert!((d.iter().sum::<f32>() - 3.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bins_are_bounded_before_anything_is_allocated() {
+        // 100,000 bins would ask for 3 × 10¹⁰ floats (120 GB).
+        for bins in [MAX_BINS + 1, 100_000, usize::MAX] {
+            assert_eq!(
+                good_descriptor(&[[0.0; 3]], bins),
+                Err(GoodError::InvalidBins(bins))
+            );
+        }
+        let msg = GoodError::InvalidBins(100_000).to_string();
+        assert!(msg.contains("`bins`") && msg.contains("256"), "{msg}");
+        assert_eq!(
+            good_descriptor(&[[0.0; 3]], MAX_BINS).unwrap().len(),
+            196_608
+        );
     }
 }

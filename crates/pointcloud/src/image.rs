@@ -170,14 +170,32 @@ impl RgbImage {
         .map_err(|e| err(path, e))
     }
 
-    /// Reads an 8-bit RGB or RGBA PNG (alpha dropped).
+    /// Reads an 8-bit RGB or RGBA PNG (alpha dropped). A header declaring more pixels than
+    /// the file's compressed data can hold is an error, before anything is allocated.
     pub fn read_png(path: &Path) -> Result<RgbImage, ImageError> {
         let file = File::open(path).map_err(|e| err(path, e))?;
+        let file_len = file.metadata().map_err(|e| err(path, e))?.len();
         let decoder = png::Decoder::new(std::io::BufReader::new(file));
         let mut reader = decoder.read_info().map_err(|e| err(path, e))?;
         let size = reader
             .output_buffer_size()
             .ok_or_else(|| err(path, "image too large"))?;
+        // Deflate expands at most 1032:1, so the pixels of a PNG take at most ~1032 bytes per
+        // byte of file; a header claiming more is corrupt (and would make us allocate it).
+        let most = usize::try_from(file_len)
+            .unwrap_or(usize::MAX)
+            .saturating_mul(DEFLATE_MAX_RATIO)
+            .saturating_add(1 << 16);
+        if size > most {
+            let (w, h) = reader.info().size();
+            return Err(err(
+                path,
+                format!(
+                    "the header declares a {w}×{h} image ({size} bytes), more than a \
+                     {file_len}-byte PNG can hold"
+                ),
+            ));
+        }
         let mut buf = vec![0; size];
         let info = reader.next_frame(&mut buf).map_err(|e| err(path, e))?;
         let channels = match (info.color_type, info.bit_depth) {
@@ -196,6 +214,10 @@ impl RgbImage {
         ))
     }
 }
+
+/// The largest expansion of deflate (zlib) data, 1032:1: bounds what a compressed image file
+/// can decode to.
+pub const DEFLATE_MAX_RATIO: usize = 1032;
 
 /// Writes a single-channel float32 TIFF (depth in metres, uncompressed).
 pub fn write_depth_tiff(
@@ -219,18 +241,80 @@ pub fn write_depth_tiff(
     .map_err(|e| err(path, e))
 }
 
-/// Reads a single-channel float32 TIFF; returns `(width, height, values)`.
+/// Reads a single-channel float32 TIFF; returns `(width, height, values)`. The decoder's buffers
+/// are limited by the file's size (at most [`DEFLATE_MAX_RATIO`]× for compressed strips, and
+/// never more than the `tiff` crate's defaults), so a corrupt header cannot make it allocate
+/// gigabytes.
 pub fn read_depth_tiff(path: &Path) -> Result<(usize, usize, Vec<f32>), ImageError> {
-    let file = File::open(path).map_err(|e| err(path, e))?;
-    let mut dec =
-        tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| err(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| err(path, e))?;
+    check_tiff_counts(&bytes).map_err(|reason| err(path, reason))?;
+    let file_len = bytes.len();
+    let mut limits = tiff::decoder::Limits::default();
+    let most = file_len
+        .saturating_mul(DEFLATE_MAX_RATIO)
+        .saturating_add(1 << 16);
+    limits.decoding_buffer_size = limits.decoding_buffer_size.min(most);
+    limits.intermediate_buffer_size = limits.intermediate_buffer_size.min(most);
+    limits.ifd_value_size = limits.ifd_value_size.min(file_len);
+    let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes))
+        .map_err(|e| err(path, e))?
+        .with_limits(limits);
     let (w, h) = dec.dimensions().map_err(|e| err(path, e))?;
     match dec.read_image().map_err(|e| err(path, e))? {
-        tiff::decoder::DecodingResult::F32(v) if v.len() == (w * h) as usize => {
+        tiff::decoder::DecodingResult::F32(v) if v.len() as u64 == u64::from(w) * u64::from(h) => {
             Ok((w as usize, h as usize, v))
         }
         _ => Err(err(path, "not a single-channel float32 TIFF")),
     }
+}
+
+/// Checks that no entry of a TIFF's first IFD declares more values than the file has bytes:
+/// the `tiff` decoder reads that IFD with its default limits, reserving up to 256 MiB for one
+/// entry's values whatever the file holds.
+fn check_tiff_counts(b: &[u8]) -> Result<(), String> {
+    let little = match b.get(..2) {
+        Some(b"II") => true,
+        Some(b"MM") => false,
+        _ => return Err("not a TIFF (no II/MM byte order mark)".into()),
+    };
+    let uint = |at: usize, width: usize| -> Result<u64, String> {
+        let f = b
+            .get(at..at.saturating_add(width))
+            .ok_or_else(|| format!("truncated TIFF: {width} bytes at offset {at}"))?;
+        let mut v = 0u64;
+        for k in 0..width {
+            let byte = if little { f[width - 1 - k] } else { f[k] };
+            v = (v << 8) | u64::from(byte);
+        }
+        Ok(v)
+    };
+    let offset = |v: u64| usize::try_from(v).unwrap_or(usize::MAX);
+    // (first IFD offset, entry-count width, entry size, value-count width)
+    let (ifd, count_width, entry_size, values_width) = match uint(2, 2)? {
+        42 => (offset(uint(4, 4)?), 2, 12, 4),
+        43 => (offset(uint(8, 8)?), 8, 20, 8),
+        v => return Err(format!("not a TIFF (version {v})")),
+    };
+    let entries = uint(ifd, count_width)?;
+    let first = ifd.saturating_add(count_width);
+    if entries.saturating_mul(entry_size as u64) > b.len().saturating_sub(first) as u64 {
+        return Err(format!(
+            "the first IFD declares {entries} entries, more than the {}-byte file holds",
+            b.len()
+        ));
+    }
+    for i in 0..entries as usize {
+        let e = first + i * entry_size;
+        let (tag, values) = (uint(e, 2)?, uint(e + 4, values_width)?);
+        if values > b.len() as u64 {
+            return Err(format!(
+                "IFD entry {i} (tag {tag}) declares {values} values, more than the {}-byte \
+                 file holds",
+                b.len()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Maps depth (metres) to a grey image: near = bright, far = dark, 0 (no data) = black.
@@ -325,5 +409,29 @@ mod tests {
         assert_eq!(read_depth_tiff(&t).unwrap(), (7, 5, depth));
         std::fs::write(&t, b"II*\0garbage").unwrap();
         assert!(read_depth_tiff(&t).is_err());
+    }
+
+    #[test]
+    fn headers_declaring_more_than_the_file_holds_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        // A valid 1×1 PNG whose IHDR (CRC fixed) claims 65535 × 65535 pixels: 12 GiB.
+        let p = dir.path().join("a.png");
+        RgbImage::new(1, 1, [0; 3]).write_png(&p).unwrap();
+        let mut png = std::fs::read(&p).unwrap();
+        png[16..24].copy_from_slice(&[0, 0, 0xff, 0xff, 0, 0, 0xff, 0xff]);
+        let crc = crc32fast::hash(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        std::fs::write(&p, &png).unwrap();
+        let e = RgbImage::read_png(&p).unwrap_err().to_string();
+        assert!(e.contains("65535×65535"), "{e}");
+        // A TIFF whose first tag claims 2³² - 1 values.
+        let t = dir.path().join("d.tiff");
+        write_depth_tiff(&t, 2, 2, &[0.5; 4]).unwrap();
+        let mut tiff = std::fs::read(&t).unwrap();
+        let ifd = u32::from_le_bytes(tiff[4..8].try_into().unwrap()) as usize;
+        tiff[ifd + 2 + 4..ifd + 2 + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+        std::fs::write(&t, &tiff).unwrap();
+        let e = read_depth_tiff(&t).unwrap_err().to_string();
+        assert!(e.contains("4294967295 values"), "{e}");
     }
 }

@@ -28,6 +28,7 @@ pub mod cloud;
 pub mod dataset;
 pub mod features;
 pub(crate) mod fsutil;
+pub use fsutil::{DirLock, LOCK_FILE};
 pub mod good;
 pub mod grasp;
 pub mod image;

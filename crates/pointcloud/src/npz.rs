@@ -95,6 +95,19 @@ impl NpyData {
         self.len() == 0
     }
 
+    /// The numpy dtype (`descr`) the values were read from: `<f4`, `<f8`, `<u4`, `<u8`, `<i4`
+    /// or `<i8`.
+    pub fn dtype(&self) -> &'static str {
+        match self {
+            NpyData::F32(_) => "<f4",
+            NpyData::F64(_) => "<f8",
+            NpyData::U32(_) => "<u4",
+            NpyData::U64(_) => "<u8",
+            NpyData::I32(_) => "<i4",
+            NpyData::I64(_) => "<i8",
+        }
+    }
+
     /// The values as non-negative integers (`None` if a value is negative or fractional).
     pub fn to_u64(&self) -> Option<Vec<u64>> {
         match self {
@@ -284,7 +297,8 @@ pub fn read_npz(path: &Path) -> Result<Vec<NpyArray>, NpzError> {
         })?;
     let entries = u16_at(&bytes, eocd + 10).ok_or_else(truncated)? as usize;
     let cd_offset = u32_at(&bytes, eocd + 16).ok_or_else(truncated)? as usize;
-    let mut out = Vec::with_capacity(entries);
+    // Each entry takes at least a 46-byte central directory record: no more can be real.
+    let mut out = Vec::with_capacity(entries.min(bytes.len() / 46));
     let mut p = cd_offset;
     for _ in 0..entries {
         if u32_at(&bytes, p) != Some(0x0201_4b50) {
@@ -372,16 +386,23 @@ pub fn parse_npy(body: &[u8]) -> Result<(Vec<usize>, NpyData), String> {
     if fortran && shape.iter().filter(|&&d| d > 1).count() > 1 {
         return Err("Fortran-order arrays are not supported".into());
     }
-    let count: usize = shape.iter().product();
     let data = &body[header_start + header_len..];
+    // The element count, and the bytes it needs, checked against the bytes present before
+    // anything is allocated (a corrupt shape can overflow `usize`).
+    let count = shape
+        .iter()
+        .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+        .ok_or_else(|| format!("shape {shape:?} has more elements than memory can address"))?;
     let need = |size: usize| -> Result<&[u8], String> {
-        data.get(..count * size).ok_or_else(|| {
-            format!(
-                "data holds {} bytes, shape {shape:?} needs {}",
-                data.len(),
-                count * size
-            )
-        })
+        count
+            .checked_mul(size)
+            .and_then(|bytes| data.get(..bytes))
+            .ok_or_else(|| {
+                format!(
+                    "data holds {} bytes, shape {shape:?} needs {count} × {size}",
+                    data.len()
+                )
+            })
     };
     let parsed = match descr {
         "<f4" => NpyData::F32(
@@ -435,6 +456,28 @@ mod tests {
         let header_len = u16::from_le_bytes([b[8], b[9]]) as usize;
         assert_eq!((10 + header_len) % 64, 0);
         assert_eq!(b.len(), 10 + header_len + 12);
+    }
+
+    #[test]
+    fn shapes_are_checked_against_the_data_before_allocating() {
+        let npy = |shape: &str| {
+            let header =
+                format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}\n");
+            let mut b = b"\x93NUMPY\x01\x00".to_vec();
+            b.extend_from_slice(&(header.len() as u16).to_le_bytes());
+            b.extend_from_slice(header.as_bytes());
+            b.extend_from_slice(&[0; 16]);
+            b
+        };
+        assert!(parse_npy(&npy("(2, 2)")).is_ok());
+        // 2³² × 2³² wraps to 0 elements; 2⁶⁴ - 1 elements need 2⁶⁶ bytes.
+        for shape in [
+            "(4294967296, 4294967296)",
+            "(18446744073709551615,)",
+            "(5,)",
+        ] {
+            assert!(parse_npy(&npy(shape)).is_err(), "{shape}");
+        }
     }
 
     #[test]

@@ -5,6 +5,11 @@
 //! projected points' bounding square (plus a margin) is mapped onto the image, and each point
 //! is splatted as a small square with a z-buffer (nearest wins). Empty pixels have depth 0.
 //!
+//! [`ProjectionParams`] are bounded ([`ProjectionParams::validate`], checked by
+//! [`project_to_image`] before anything is allocated): `size` in `1..=`[`MAX_IMAGE_SIZE`]
+//! (4096: 64 MiB of depth), `splat_px` in `0..=`[`MAX_SPLAT_PX`] (64), `margin` in `[0, 0.5]`.
+//! The work is then at most `points × min(splat_px, size)²` pixel writes.
+//!
 //! ```
 //! use lgdm_pointcloud::projection::{project_to_image, best_view, ProjectionParams};
 //! use lgdm_pointcloud::PointCloud;
@@ -18,14 +23,24 @@ use serde::{Deserialize, Serialize};
 
 use crate::cloud::PointCloud;
 
+/// The largest image side in pixels: 4096 (16.8 M pixels, 64 MiB of depth plus 48 MiB of
+/// colour), 18 times the autoencoder's 224.
+pub const MAX_IMAGE_SIZE: usize = 4096;
+
+/// The largest splat side in pixels: 64. The automatic splat is at most 9; a larger square only
+/// blurs the silhouette while each point costs `splat_px²` pixel writes.
+pub const MAX_SPLAT_PX: usize = 64;
+
 /// How a cloud becomes an image.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ProjectionParams {
-    /// Image side in pixels (default: 224).
+    /// Image side in pixels, `1..=`[`MAX_IMAGE_SIZE`] (default: 224).
     pub size: usize,
-    /// Margin around the object as a fraction of the side (default: 0.08).
+    /// Margin around the object as a fraction of the side, in `[0, 0.5]`; values above 0.45
+    /// act as 0.45 (default: 0.08).
     pub margin: f32,
-    /// Splat side in pixels; 0 chooses it from the point density (default: 0).
+    /// Splat side in pixels, `0..=`[`MAX_SPLAT_PX`]; 0 chooses it from the point density
+    /// (default: 0).
     pub splat_px: usize,
 }
 
@@ -36,6 +51,34 @@ impl Default for ProjectionParams {
             margin: 0.08,
             splat_px: 0,
         }
+    }
+}
+
+impl ProjectionParams {
+    /// Checks every field against its documented range; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ProjectionError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(ProjectionError::InvalidParam { field, reason })
+        };
+        if !(1..=MAX_IMAGE_SIZE).contains(&self.size) {
+            return bad(
+                "size",
+                format!("must be in 1..={MAX_IMAGE_SIZE} (got {})", self.size),
+            );
+        }
+        if self.splat_px > MAX_SPLAT_PX {
+            return bad(
+                "splat_px",
+                format!("must be in 0..={MAX_SPLAT_PX} (got {})", self.splat_px),
+            );
+        }
+        if !(0.0..=0.5).contains(&self.margin) {
+            return bad(
+                "margin",
+                format!("must be in [0, 0.5] (got {})", self.margin),
+            );
+        }
+        Ok(())
     }
 }
 
@@ -76,20 +119,24 @@ pub enum ProjectionError {
     /// No point in front of the camera.
     #[error("no point of the cloud lies in front of the camera")]
     Empty,
-    /// Image side 0.
-    #[error("image size must be at least 1")]
-    ZeroSize,
+    /// A parameter is outside its documented range ([`ProjectionParams::validate`]).
+    #[error("projection parameter `{field}` {reason}")]
+    InvalidParam {
+        /// The field of [`ProjectionParams`] (`size`, `splat_px`, `margin`).
+        field: &'static str,
+        /// The range and the value given.
+        reason: String,
+    },
 }
 
-/// Projects a cloud (optical frame, metres) to a square depth / RGB-D image.
+/// Projects a cloud (optical frame, metres) to a square depth / RGB-D image. `params` are
+/// validated first ([`ProjectionParams::validate`]).
 pub fn project_to_image(
     cloud: &PointCloud,
     params: &ProjectionParams,
 ) -> Result<ProjectedImage, ProjectionError> {
+    params.validate()?;
     let size = params.size;
-    if size == 0 {
-        return Err(ProjectionError::ZeroSize);
-    }
     let front: Vec<usize> = (0..cloud.len())
         .filter(|&i| cloud.points[i][2] > 1e-3 && cloud.points[i].iter().all(|v| v.is_finite()))
         .collect();
@@ -130,13 +177,15 @@ pub fn project_to_image(
         let x = ((uv[j][0] - centre[0]) * scale + size as f32 / 2.0).floor() as i64;
         let y = ((uv[j][1] - centre[1]) * scale + size as f32 / 2.0).floor() as i64;
         let z = cloud.points[i][2];
+        // The splat square, clipped to the image (rows, then columns, as unclipped).
         let r0 = -((splat as i64 - 1) / 2);
-        for dy in r0..r0 + splat as i64 {
-            for dx in r0..r0 + splat as i64 {
-                let (px, py) = (x + dx, y + dy);
-                if px < 0 || py < 0 || px >= size as i64 || py >= size as i64 {
-                    continue;
-                }
+        let span = |c: i64| {
+            let lo = c.saturating_add(r0);
+            (lo.max(0), lo.saturating_add(splat as i64).min(size as i64))
+        };
+        let ((x0, x1), (y0, y1)) = (span(x), span(y));
+        for py in y0..y1 {
+            for px in x0..x1 {
                 let o = py as usize * size + px as usize;
                 if depth[o] == 0.0 || z < depth[o] {
                     depth[o] = z;
@@ -208,4 +257,111 @@ pub fn best_view(views: &[PointCloud]) -> Option<usize> {
         }
     }
     best.map(|(i, _)| i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cloud() -> PointCloud {
+        PointCloud::new(
+            (0..100)
+                .map(|i| [(i % 10) as f32 * 0.01, (i / 10) as f32 * 0.01, 0.8])
+                .collect(),
+            None,
+        )
+    }
+
+    #[test]
+    fn parameters_out_of_range_are_named_before_any_allocation() {
+        let cases = [
+            (
+                "size",
+                ProjectionParams {
+                    size: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "size",
+                ProjectionParams {
+                    size: 100_000,
+                    ..Default::default()
+                },
+            ),
+            (
+                "size",
+                ProjectionParams {
+                    size: usize::MAX,
+                    ..Default::default()
+                },
+            ),
+            (
+                "splat_px",
+                ProjectionParams {
+                    splat_px: 1_000_000,
+                    ..Default::default()
+                },
+            ),
+            (
+                "splat_px",
+                ProjectionParams {
+                    splat_px: MAX_SPLAT_PX + 1,
+                    ..Default::default()
+                },
+            ),
+            (
+                "margin",
+                ProjectionParams {
+                    margin: f32::NAN,
+                    ..Default::default()
+                },
+            ),
+            (
+                "margin",
+                ProjectionParams {
+                    margin: -0.1,
+                    ..Default::default()
+                },
+            ),
+            (
+                "margin",
+                ProjectionParams {
+                    margin: 0.51,
+                    ..Default::default()
+                },
+            ),
+        ];
+        for (name, params) in cases {
+            match project_to_image(&cloud(), &params) {
+                Err(ProjectionError::InvalidParam { field, reason }) => {
+                    assert_eq!(field, name, "{reason}");
+                    let msg = ProjectionError::InvalidParam { field, reason }.to_string();
+                    assert!(msg.contains(&format!("`{name}`")), "{msg}");
+                }
+                other => panic!("{params:?}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn the_largest_parameters_work() {
+        let params = ProjectionParams {
+            size: 64,
+            splat_px: MAX_SPLAT_PX,
+            margin: 0.49,
+        };
+        let img = project_to_image(&cloud(), &params).unwrap();
+        // A 64-pixel splat on a 64-pixel image covers it.
+        assert!(img.depth_m.iter().all(|&d| d == 0.8));
+        let big = ProjectionParams {
+            size: MAX_IMAGE_SIZE,
+            splat_px: 1,
+            margin: 0.0,
+        };
+        assert_eq!(
+            project_to_image(&cloud(), &big).unwrap().depth_m.len(),
+            4096 * 4096
+        );
+    }
 }

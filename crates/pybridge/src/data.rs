@@ -241,7 +241,8 @@ impl SequenceIter {
 }
 
 /// The GOOD descriptor of one point cloud: `points` (N, 3) float32 C-contiguous, `bins` per
-/// side; returns `3 · bins²` float32 values (675 for 15 bins).
+/// side (1..=256, `lgdm_pointcloud::good::MAX_BINS`); returns `3 · bins²` float32 values (675
+/// for 15 bins).
 #[pyfunction]
 #[pyo3(signature = (points, bins=15))]
 pub fn good_descriptor<'py>(
@@ -266,10 +267,16 @@ pub fn good_features<'py>(
     dataset: &PyDataset,
     bins: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
+    // A bad `bins` is the caller's input (lgdm.InputError), not the dataset's.
+    good::check_bins(bins).map_err(|e| errors::input(e.to_string()))?;
     let ds = &dataset.inner;
     let table = py
         .detach(|| lgdm_pointcloud::features::good_features(ds, bins, &mut |_| {}))
-        .map_err(dataset_error)?;
+        .map_err(|e| match e {
+            // Too many bins for this dataset's table (4 GiB): also the caller's input.
+            DatasetError::InvalidSpec { field: "bins", .. } => errors::input(e.to_string()),
+            e => dataset_error(e),
+        })?;
     let n = table.len();
     let out = PyDict::new(py);
     let features = Array2::from_shape_vec((n, table.dim), table.features)
@@ -297,6 +304,8 @@ pub fn good_features<'py>(
         manifest.collections_in(dataset::Split::Test),
     )?;
     out.set_item("categories", manifest.categories.clone())?;
+    let instances: Vec<String> = manifest.instances.iter().map(|i| i.name.clone()).collect();
+    out.set_item("instances", instances)?;
     out.set_item("dataset", ds.dir().display().to_string())?;
     out.set_item("encoder", "good")?;
     Ok(out)
@@ -305,10 +314,13 @@ pub fn good_features<'py>(
 /// Generates a dataset into directory `out` and opens it: `preset` "small" (10 categories × 3
 /// instances, 15 collections, 10 frames per sequence) or "paper" (10 × 5, 100 frames), `seed`,
 /// and optionally `frames` per sequence, `grasp_images` and user `meshes`
-/// (`<dir>/<category>/<instance>.{obj,stl,ply}`), exactly as `lgdm gen-dataset` takes them:
-/// same arguments, same files. `out` must be new, empty or hold an lgdm dataset.
+/// (`<dir>/<category>/<instance>.{obj,stl,ply}`) with their `units` (`--units` entries: `UNIT`
+/// for every file, `<category>/<file>=UNIT` for one; default: guessed from each file's size),
+/// exactly as `lgdm gen-dataset` takes them: same arguments, same files. `out` must be new,
+/// empty or hold an lgdm dataset.
 #[pyfunction]
-#[pyo3(signature = (out, preset="small", seed=0, *, frames=None, grasp_images=None, meshes=None))]
+#[pyo3(signature = (out, preset="small", seed=0, *, frames=None, grasp_images=None, meshes=None, units=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn generate_dataset(
     py: Python<'_>,
     out: PathBuf,
@@ -317,6 +329,7 @@ pub fn generate_dataset(
     frames: Option<usize>,
     grasp_images: Option<usize>,
     meshes: Option<PathBuf>,
+    units: Option<Vec<String>>,
 ) -> PyResult<PyDataset> {
     let mut spec = DatasetSpec::preset(preset, seed).map_err(dataset_error)?;
     if let Some(frames) = frames {
@@ -326,6 +339,13 @@ pub fn generate_dataset(
         spec.grasp_images = n;
     }
     spec.meshes = meshes;
+    spec.mesh_units = lgdm_pointcloud::import::MeshUnits::parse(&units.unwrap_or_default())
+        .map_err(|reason| {
+            dataset_error(DatasetError::InvalidSpec {
+                field: "mesh_units",
+                reason,
+            })
+        })?;
     spec.validate().map_err(dataset_error)?;
     dataset::check_output_dir(&out).map_err(dataset_error)?;
     let inner = py
@@ -366,17 +386,22 @@ pub fn project_to_image<'py>(
     margin: f32,
     splat_px: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
+    // Bounded sizes (`lgdm_pointcloud::projection::MAX_IMAGE_SIZE`, `MAX_SPLAT_PX`), checked
+    // before the points are copied; the error names the argument.
+    let params = lgdm_pointcloud::projection::ProjectionParams {
+        size,
+        margin,
+        splat_px,
+    };
+    params
+        .validate()
+        .map_err(|e| errors::input(e.to_string()))?;
     let pts = self::points(&points)?;
     let cols = colors
         .as_ref()
         .map(|c| self::colors(c, pts.len()))
         .transpose()?;
     let cloud = lgdm_pointcloud::PointCloud::new(pts, cols);
-    let params = lgdm_pointcloud::projection::ProjectionParams {
-        size,
-        margin,
-        splat_px,
-    };
     let (image, normalized) = py
         .detach(|| {
             lgdm_pointcloud::projection::project_to_image(&cloud, &params).map(|img| {

@@ -3,6 +3,7 @@ same values Rust computes for the command line."""
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import numpy as np
@@ -171,3 +172,160 @@ def test_best_view_prefers_the_larger_silhouette():
 def test_projection_errors(kwargs, message):
     with pytest.raises(lgdm.InputError, match=message):
         lgdm.project_to_image(**kwargs)
+
+
+def _obj(vertices, faces) -> str:
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices]
+    lines += ["f " + " ".join(str(i + 1) for i in face) for face in faces]
+    return "\n".join(lines) + "\n"
+
+
+def _ball(diameter: float) -> str:
+    """An octahedron: its largest extent and its diameter are both ``diameter``."""
+    r = diameter / 2
+    v = [(r, 0, 0), (-r, 0, 0), (0, r, 0), (0, -r, 0), (0, 0, r), (0, 0, -r)]
+    f = [(0, 2, 4), (2, 1, 4), (1, 3, 4), (3, 0, 4), (2, 0, 5), (1, 2, 5), (3, 1, 5), (0, 3, 5)]
+    return _obj(v, f)
+
+
+def _box(sx: float, sy: float, sz: float) -> str:
+    v = [(x, y, z) for x in (0, sx) for y in (0, sy) for z in (0, sz)]
+    f = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+         (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]  # fmt: skip
+    return _obj(v, f)
+
+
+@pytest.fixture
+def mm_meshes(tmp_path):
+    """A 43 mm golf ball (43 mm or 43 cm: ambiguous) and a 62 mm cup (62 cm is over the
+    60 cm of household objects: guessed mm), both in millimetres."""
+    meshes = tmp_path / "meshes"
+    (meshes / "ball").mkdir(parents=True)
+    (meshes / "cup").mkdir()
+    (meshes / "ball" / "golf_ball.obj").write_text(_ball(43.0))
+    (meshes / "cup" / "espresso.obj").write_text(_box(50.0, 50.0, 62.0))
+    return meshes
+
+
+def _small_from(meshes, out, **kwargs):
+    return lgdm.generate_dataset(
+        out, "small", seed=1, frames=2, grasp_images=0, meshes=meshes, **kwargs
+    )
+
+
+def test_generate_dataset_asks_for_units_when_a_size_fits_two(mm_meshes, tmp_path):
+    out = tmp_path / "data"
+    with pytest.raises(lgdm.DatasetError) as info:
+        _small_from(mm_meshes, out)
+    message = str(info.value)
+    for part in ("golf_ball.obj", "0.043 m", "0.43 m", "--units", "units="):
+        assert part in message, (part, message)
+    assert not out.exists(), "nothing is written when a unit is ambiguous"
+
+
+def test_generate_dataset_units_give_objects_of_the_right_size(mm_meshes, tmp_path):
+    ds = _small_from(mm_meshes, tmp_path / "data", units="mm")
+    imports = [inst["import"] for inst in ds.instances]
+    assert [(i["file"], i["unit"], i["unit_source"]) for i in imports] == [
+        ("ball/golf_ball.obj", "mm", "given"),
+        ("cup/espresso.obj", "mm", "given"),
+    ]
+    assert imports[0]["largest_extent_m"] == pytest.approx(0.043, abs=1e-5)
+    assert imports[1]["largest_extent_m"] == pytest.approx(0.062, abs=1e-5)
+    assert ds.manifest["spec"]["mesh_units"] == {"all": "mm"}
+    # Rendered views of the ball are at most 43 mm across (its diameter), not 43 cm.
+    for frames, info in ds.sequences(0):
+        if info["instance_name"] != "golf_ball":
+            continue
+        for points in frames:
+            diameter = np.sqrt(((points[:, None, :] - points[None, :, :]) ** 2).sum(-1)).max()
+            assert 0.7 * 0.043 < diameter < 1.05 * 0.043, diameter
+    # Per file: only the ambiguous ball given, the cup guessed.
+    ds = _small_from(mm_meshes, tmp_path / "data2", units={"ball/golf_ball.obj": "mm"})
+    assert [(i["import"]["unit"], i["import"]["unit_source"]) for i in ds.instances] == [
+        ("mm", "given_for_file"),
+        ("mm", "guessed"),
+    ]
+    assert ds.manifest["spec"]["mesh_units"] == {"files": {"ball/golf_ball.obj": "mm"}}
+
+
+@pytest.mark.parametrize(
+    ("units", "error", "message"),
+    [
+        ("inch", lgdm.DatasetError, "unknown unit `inch`"),
+        ({"ball/golf.obj": "mm"}, lgdm.DatasetError, "no such mesh file"),
+        ({"golf_ball.obj": "mm"}, lgdm.DatasetError, "<category>/<file>"),
+        ({"*": "mm", "ball/golf_ball.obj": 3}, lgdm.InputError, "units must map"),
+        (5, lgdm.InputError, "units must be"),
+    ],
+)
+def test_generate_dataset_unit_errors(mm_meshes, tmp_path, units, error, message):
+    with pytest.raises(error, match=message):
+        _small_from(mm_meshes, tmp_path / "data", units=units)
+    assert not (tmp_path / "data").exists()
+
+
+def test_generate_dataset_units_need_meshes(tmp_path):
+    with pytest.raises(lgdm.DatasetError, match="mesh_units"):
+        lgdm.generate_dataset(tmp_path / "data", "small", units="mm")
+
+
+# Issue 12: sizes are bounded where they enter (GOOD bins ≤ 256, image size ≤ 4096, splat ≤ 64),
+# in Rust, so even the private functions refuse before allocating. Each test tries the first
+# value over the limit first: on unbounded code that one is accepted (cheaply), so the test
+# fails there instead of reaching the huge values (a 120 GB allocation, or no end).
+
+
+def test_good_descriptor_bins_are_bounded():
+    points = np.random.default_rng(0).normal(0.0, 0.05, (200, 3)).astype(np.float32)
+    assert lgdm.good_descriptor(points, bins=256).shape == (3 * 256 * 256,)
+    for bins in (257, 100_000, 10**30):
+        with pytest.raises(lgdm.InputError, match="bins"):
+            lgdm.good_descriptor(points, bins=bins)
+    with pytest.raises(lgdm.InputError, match=r"`bins` must be in 1\.\.=256 \(got 100000\)"):
+        lgdm._lgdm.good_descriptor(points, 100_000)
+
+
+def test_good_features_bins_are_bounded(small_dataset):
+    for bins in (10**30, 257, 100_000):
+        with pytest.raises(lgdm.InputError, match="bins"):
+            lgdm.good_features(small_dataset, bins=bins)
+    with pytest.raises(lgdm.InputError, match=r"`bins` must be in 1\.\.=256"):
+        lgdm._lgdm.good_features(small_dataset, 100_000)
+
+
+@pytest.mark.parametrize(
+    ("name", "over", "huge", "limit"),
+    [("size", 4097, 100_000, "4096"), ("splat_px", 65, 10**6, "64")],
+)
+def test_projection_sizes_are_bounded(name, over, huge, limit):
+    points = np.random.default_rng(1).uniform(0.1, 0.2, (50, 3))
+    points[:, 2] += 0.5
+    for value in (over, huge):
+        with pytest.raises(lgdm.InputError, match=rf"`{name}` must be in \d\.\.={limit}"):
+            lgdm.project_to_image(points, **{name: value})
+    with pytest.raises(lgdm.InputError, match=name):
+        lgdm.project_to_image(points, **{name: 10**30})
+    args = {"size": 224, "splat_px": 0, name: huge}
+    with pytest.raises(lgdm.InputError, match=rf"`{name}`"):
+        lgdm._lgdm.project_to_image(
+            points.astype(np.float32), None, args["size"], 0.08, args["splat_px"]
+        )
+    # The limits themselves are accepted.
+    image = lgdm.project_to_image(points, size=64, splat_px=64)
+    assert image["depth_m"].shape == (64, 64) and (image["depth_m"] > 0).all()
+
+
+def test_good_features_refuses_a_table_larger_than_an_npz(small_dataset, tmp_path):
+    # The manifest claims 100,000 frames per sequence: 45 million views × 675 values would
+    # need 113 GiB. Refused before any view is read (the files hold 4 frames per sequence).
+    copy = tmp_path / "copy"
+    shutil.copytree(small_dataset.path, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest["frames_per_sequence"] = 100_000
+    for c in manifest["collections"]:
+        c["views"] = c["sequences"] * 100_000
+    manifest["views"] = sum(c["views"] for c in manifest["collections"])
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(lgdm.InputError, match=r"bins.*GiB.*\.npz"):
+        lgdm.good_features(copy)

@@ -28,8 +28,8 @@ pub struct Args {
     /// Output `.npz` file.
     #[arg(long)]
     pub out: PathBuf,
-    /// GOOD bins per projection side.
-    #[arg(long, default_value_t = 15)]
+    /// GOOD bins per projection side, 1..=256 (3 × bins² values).
+    #[arg(long, default_value_t = 15, value_parser = parse_bins)]
     pub bins: usize,
     /// Autoencoder checkpoint for `--encoder ae` (default: the one shipped with train_ae,
     /// `train_ae.bridge.default_checkpoint()`).
@@ -49,6 +49,22 @@ pub fn run(args: Args) -> Result<()> {
     let reporter = Reporter::new(args.progress);
     let ds = Dataset::open(&args.dataset)
         .with_context(|| format!("opening the dataset in {}", args.dataset.display()))?;
+    // The output may not land inside the dataset it is computed from (e.g. over manifest.json).
+    let out_parent = match args.out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    if let (Ok(parent), Ok(dataset)) = (
+        std::fs::canonicalize(out_parent),
+        std::fs::canonicalize(ds.dir()),
+    ) && parent.starts_with(&dataset)
+    {
+        anyhow::bail!(
+            "--out {} is inside the dataset {} it reads; write the features elsewhere",
+            args.out.display(),
+            ds.dir().display()
+        );
+    }
     let started = Instant::now();
     let table = match &source {
         FeatureSource::Good => {
@@ -86,4 +102,43 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--bins`: a count in `1..=`[`lgdm_pointcloud::good::MAX_BINS`], checked by the library's own
+/// check before any data is read.
+fn parse_bins(text: &str) -> Result<usize, String> {
+    let bins: usize = text
+        .parse()
+        .map_err(|e| format!("`{text}` is not a count: {e}"))?;
+    lgdm_pointcloud::good::check_bins(bins).map_err(|e| e.to_string())?;
+    Ok(bins)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn parse(bins: &str) -> Result<Args, clap::Error> {
+        let bins = format!("--bins={bins}");
+        Cli::try_parse_from(["lgdm", "--dataset", "d", "--out", "o.npz", &bins]).map(|c| c.args)
+    }
+
+    #[test]
+    fn bins_are_bounded_on_the_command_line() {
+        assert_eq!(parse("15").unwrap().bins, 15);
+        assert_eq!(parse("256").unwrap().bins, 256);
+        for bad in ["257", "100000", "0", "-3", "many"] {
+            let err = parse(bad).expect_err(bad).to_string();
+            assert!(err.contains("--bins"), "{bad}: {err}");
+        }
+        let err = parse("100000").unwrap_err().to_string();
+        assert!(err.contains("1..=256"), "{err}");
+    }
 }

@@ -16,6 +16,7 @@ use super::{
 use crate::augment::{Augmentation, subsample};
 use crate::fsutil::write_json_atomic;
 use crate::grasp::{CornellExport, export_cornell};
+use crate::import::ImportReport;
 use crate::math::{Pose, derive_seed, rotation_z, translation};
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, procedural_library, rest_on_table};
@@ -33,7 +34,8 @@ pub type LoadedObjects = (Vec<ObjectModel>, Vec<String>, Vec<InstanceInfo>);
 /// The objects a spec describes (procedural or imported), the category names in label order,
 /// and the per-instance manifest entries.
 pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
-    let (objects, sources): (Vec<ObjectModel>, Vec<String>) = match &spec.meshes {
+    type Source = (String, Option<ImportReport>);
+    let (objects, sources): (Vec<ObjectModel>, Vec<Source>) = match &spec.meshes {
         None => {
             let cats: Vec<&str> = spec.categories.iter().map(String::as_str).collect();
             let objects = procedural_library(&cats, spec.instances_per_category, spec.seed)
@@ -42,16 +44,15 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
                     reason: e.to_string(),
                 })?;
             let n = objects.len();
-            (objects, vec!["procedural".to_string(); n])
+            (objects, vec![("procedural".to_string(), None); n])
         }
-        Some(dir) => {
-            let objects = crate::import::load_mesh_library(dir)?;
-            let sources = objects
-                .iter()
-                .map(|o| format!("{}/{}", o.category, o.name))
-                .collect();
-            (objects, sources)
-        }
+        Some(dir) => crate::import::load_mesh_library(dir, &spec.mesh_units)?
+            .into_iter()
+            .map(|i| {
+                let source = format!("{}/{}", i.object.category, i.object.name);
+                (i.object, (source, Some(i.report)))
+            })
+            .unzip(),
     };
     let mut categories: Vec<String> = Vec::new();
     for o in &objects {
@@ -62,13 +63,14 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
     let instances = objects
         .iter()
         .zip(sources)
-        .map(|(o, source)| InstanceInfo {
+        .map(|(o, (source, import))| InstanceInfo {
             name: o.name.clone(),
             category: categories
                 .iter()
                 .position(|c| *c == o.category)
                 .expect("collected above") as u32,
             source,
+            import,
         })
         .collect();
     Ok((objects, categories, instances))
@@ -78,11 +80,23 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
 /// lgdm dataset (`manifest.json`) to be replaced. Anything else is refused, so generating never
 /// mixes a dataset into unrelated files.
 pub fn check_output_dir(out: &Path) -> Result<(), DatasetError> {
+    if crate::DirLock::is_held(out) {
+        return Err(DatasetError::io(
+            out,
+            std::io::Error::new(
+                std::io::ErrorKind::WouldBlock,
+                "another lgdm process is writing this dataset directory",
+            ),
+        ));
+    }
+    check_contents(out)
+}
+
+/// The contents part of [`check_output_dir`] (for the writer that holds the lock).
+fn check_contents(out: &Path) -> Result<(), DatasetError> {
     if out.is_dir() && !out.join(super::MANIFEST_FILE).is_file() {
-        let non_empty = std::fs::read_dir(out)
-            .map_err(|e| DatasetError::io(out, e))?
-            .next()
-            .is_some();
+        let mut entries = std::fs::read_dir(out).map_err(|e| DatasetError::io(out, e))?;
+        let non_empty = entries.any(|e| e.map_or(true, |e| e.file_name() != crate::LOCK_FILE));
         if non_empty {
             return Err(DatasetError::InvalidSpec {
                 field: "out",
@@ -114,112 +128,134 @@ pub fn generate(
         done: 0,
         total: 1,
     });
+    // Objects first: a mesh that cannot be imported fails before anything is written.
     let (objects, categories, instances) = load_objects(spec)?;
     progress(Progress {
         stage: "objects",
         done: 1,
         total: 1,
     });
-    let collections_dir = out_dir.join("collections");
-    std::fs::create_dir_all(&collections_dir).map_err(|e| DatasetError::io(&collections_dir, e))?;
-    let camera = spec.camera.camera();
-
-    // Collections in parallel, one file each; progress is reported on this thread.
-    let n_coll = spec.collections.len();
-    let cancel = AtomicBool::new(false);
-    let total_views = spec.views(objects.len());
-    let mut views = 0u64;
-    let results = crate::progress::par_map_with_progress(
-        n_coll,
-        |c, tick| {
-            let r = write_collection(
-                spec,
-                c,
-                &objects,
-                &instances,
-                &categories,
-                &camera,
+    // One writer per directory: a second `generate` into it fails instead of mixing files.
+    let lock = crate::DirLock::try_acquire(out_dir)
+        .map_err(|e| DatasetError::io(out_dir, e))?
+        .ok_or_else(|| {
+            DatasetError::io(
                 out_dir,
-                &cancel,
-                tick,
-            );
-            if r.is_err() {
-                cancel.store(true, Ordering::SeqCst);
-            }
-            r
-        },
-        &mut |n| {
-            views += n;
-            progress(Progress {
-                stage: "views",
-                done: views,
-                total: total_views,
-            });
-        },
-    );
-    // Report the first real error (not a cancellation caused by it).
-    let mut sizes = Vec::with_capacity(n_coll);
-    let mut first_err = None;
-    for r in results {
-        match r {
-            Ok(bytes) => sizes.push(bytes),
-            Err(DatasetError::Cancelled) => {}
-            Err(e) => {
-                first_err.get_or_insert(e);
+                std::io::Error::new(
+                    std::io::ErrorKind::WouldBlock,
+                    "another lgdm process is writing this dataset directory",
+                ),
+            )
+        })?;
+    check_contents(out_dir)?;
+    let written = (|| -> Result<Manifest, DatasetError> {
+        let collections_dir = out_dir.join("collections");
+        std::fs::create_dir_all(&collections_dir)
+            .map_err(|e| DatasetError::io(&collections_dir, e))?;
+        let camera = spec.camera.camera();
+
+        // Collections in parallel, one file each; progress is reported on this thread.
+        let n_coll = spec.collections.len();
+        let cancel = AtomicBool::new(false);
+        let total_views = spec.views(objects.len());
+        let mut views = 0u64;
+        let results = crate::progress::par_map_with_progress(
+            n_coll,
+            |c, tick| {
+                let r = write_collection(
+                    spec,
+                    c,
+                    &objects,
+                    &instances,
+                    &categories,
+                    &camera,
+                    out_dir,
+                    &cancel,
+                    tick,
+                );
+                if r.is_err() {
+                    cancel.store(true, Ordering::SeqCst);
+                }
+                r
+            },
+            &mut |n| {
+                views += n;
+                progress(Progress {
+                    stage: "views",
+                    done: views,
+                    total: total_views,
+                });
+            },
+        );
+        // Report the first real error (not a cancellation caused by it).
+        let mut sizes = Vec::with_capacity(n_coll);
+        let mut first_err = None;
+        for r in results {
+            match r {
+                Ok(bytes) => sizes.push(bytes),
+                Err(DatasetError::Cancelled) => {}
+                Err(e) => {
+                    first_err.get_or_insert(e);
+                }
             }
         }
-    }
-    if let Some(e) = first_err {
-        return Err(e);
-    }
-    if sizes.len() != n_coll {
-        return Err(DatasetError::Cancelled);
-    }
+        if let Some(e) = first_err {
+            return Err(e);
+        }
+        if sizes.len() != n_coll {
+            return Err(DatasetError::Cancelled);
+        }
 
-    let grasp = export_grasp_set(spec, &objects, &instances, out_dir, progress)?;
-    let previews = if spec.previews {
-        crate::preview::write_previews(&objects, spec.seed, &spec.grasp, out_dir, progress)?
-    } else {
-        Vec::new()
-    };
+        let grasp = export_grasp_set(spec, &objects, &instances, out_dir, progress)?;
+        let previews = if spec.previews {
+            crate::preview::write_previews(&objects, spec.seed, &spec.grasp, out_dir, progress)?
+        } else {
+            Vec::new()
+        };
 
-    let per_coll_views = (objects.len() * spec.frames_per_sequence) as u64;
-    let manifest = Manifest {
-        format: FORMAT_NAME.to_string(),
-        format_version: FORMAT_VERSION,
-        generator_version: concat!("lgdm-pointcloud ", env!("CARGO_PKG_VERSION")).to_string(),
-        preset: spec.preset.clone(),
-        seed: spec.seed,
-        categories,
-        instances,
-        collections: spec
-            .collections
-            .iter()
-            .enumerate()
-            .map(|(i, c)| CollectionInfo {
-                index: i as u32,
-                name: c.name.clone(),
-                augmentation: c.augmentation.describe(),
-                augmentation_params: c.augmentation,
-                split: c.split,
-                file: collection_file(i, &c.name),
-                sequences: objects.len() as u32,
-                views: per_coll_views,
-                bytes: sizes[i],
-            })
-            .collect(),
-        frames_per_sequence: spec.frames_per_sequence,
-        fps: spec.fps,
-        views: total_views,
-        camera,
-        point_frame: POINT_CLOUD_FRAME_ID.to_string(),
-        grasp,
-        previews,
-        spec: spec.clone(),
-    };
-    let manifest_path = out_dir.join(MANIFEST_FILE);
-    write_json_atomic(&manifest_path, &manifest)
-        .map_err(|e| DatasetError::io(&manifest_path, e))?;
+        let per_coll_views = (objects.len() * spec.frames_per_sequence) as u64;
+        let manifest = Manifest {
+            format: FORMAT_NAME.to_string(),
+            format_version: FORMAT_VERSION,
+            generator_version: concat!("lgdm-pointcloud ", env!("CARGO_PKG_VERSION")).to_string(),
+            preset: spec.preset.clone(),
+            seed: spec.seed,
+            categories,
+            instances,
+            collections: spec
+                .collections
+                .iter()
+                .enumerate()
+                .map(|(i, c)| CollectionInfo {
+                    index: i as u32,
+                    name: c.name.clone(),
+                    augmentation: c.augmentation.describe(),
+                    augmentation_params: c.augmentation,
+                    split: c.split,
+                    file: collection_file(i, &c.name),
+                    sequences: objects.len() as u32,
+                    views: per_coll_views,
+                    bytes: sizes[i],
+                })
+                .collect(),
+            frames_per_sequence: spec.frames_per_sequence,
+            fps: spec.fps,
+            views: total_views,
+            camera,
+            point_frame: POINT_CLOUD_FRAME_ID.to_string(),
+            grasp,
+            previews,
+            spec: spec.clone(),
+        };
+        let manifest_path = out_dir.join(MANIFEST_FILE);
+        write_json_atomic(&manifest_path, &manifest)
+            .map_err(|e| DatasetError::io(&manifest_path, e))?;
+        Ok(manifest)
+    })();
+    // The lock file goes whether or not the dataset was written: a failed run leaves nothing.
+    let unlocked = lock.remove().map_err(|e| DatasetError::io(out_dir, e));
+    let manifest = written?;
+    unlocked?;
     Ok(manifest)
 }
 

@@ -294,6 +294,15 @@ impl CollectionWriter {
     }
 }
 
+/// The longest MCAP record (or decompressed chunk record) a collection file of `file_len` bytes
+/// may hold: 64 × its size (point clouds compress far less), between 1 MiB and 256 MiB. Bounds
+/// what a corrupt length field makes the reader allocate.
+fn record_length_limit(file_len: u64) -> usize {
+    usize::try_from(file_len.saturating_mul(64))
+        .unwrap_or(usize::MAX)
+        .clamp(1 << 20, 256 << 20)
+}
+
 /// What the reader checks each sequence against.
 #[derive(Debug, Clone)]
 struct Expected {
@@ -315,6 +324,8 @@ pub struct SequenceReader {
     current: Option<(u16, Sequence)>,
     seen: Vec<bool>,
     done: bool,
+    /// Bytes of the file not yet handed to the MCAP reader (reads never ask for more).
+    unread: u64,
 }
 
 impl std::fmt::Debug for SequenceReader {
@@ -323,6 +334,55 @@ impl std::fmt::Debug for SequenceReader {
             .field("path", &self.path)
             .field("collection", &self.expected.collection)
             .finish_non_exhaustive()
+    }
+}
+
+/// What the MCAP reader did next.
+enum Step {
+    /// The file ended after its footer.
+    End,
+    /// The file is not valid MCAP (or a record is unreadable).
+    Invalid(String),
+    /// The reader needs this many more bytes.
+    Read(usize),
+    /// A record, parsed.
+    Record(Owned),
+}
+
+/// The reader's next event, with records checked ([`check_record_lengths`]) and parsed.
+fn next_step(reader: &mut LinearReader) -> Step {
+    match reader.next_event() {
+        None => Step::End,
+        Some(Err(mcap::McapError::UnexpectedEof)) => {
+            Step::Invalid("truncated: the file ends before the MCAP footer".into())
+        }
+        Some(Err(e)) => Step::Invalid(format!("invalid MCAP: {e}")),
+        Some(Ok(LinearReadEvent::ReadRequest(n))) => Step::Read(n),
+        Some(Ok(LinearReadEvent::Record { opcode, data })) => {
+            if let Err(reason) = check_record_lengths(opcode, data) {
+                return Step::Invalid(format!("invalid MCAP record: {reason}"));
+            }
+            Step::Record(match mcap::parse_record(opcode, data) {
+                Err(e) => return Step::Invalid(format!("invalid MCAP record: {e}")),
+                Ok(Record::Schema { header, .. }) => Owned::Schema {
+                    id: header.id,
+                    ok: header.name == "foxglove.PointCloud" && header.encoding == "protobuf",
+                    name: header.name,
+                },
+                Ok(Record::Channel(ch)) => Owned::Channel {
+                    id: ch.id,
+                    schema: ch.schema_id,
+                    encoding: ch.message_encoding.clone(),
+                    labels: ChannelLabels::from_metadata(&ch.metadata),
+                },
+                Ok(Record::Message { header, data }) => Owned::Message {
+                    channel: header.channel_id,
+                    frame: header.sequence,
+                    cloud: decode_point_cloud(&data),
+                },
+                Ok(_) => Owned::Other,
+            })
+        }
     }
 }
 
@@ -354,11 +414,15 @@ impl SequenceReader {
         manifest: &Manifest,
     ) -> Result<Self, DatasetError> {
         let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
+        let unread = file
+            .metadata()
+            .map_err(|e| DatasetError::io(path, e))?
+            .len();
         let options = LinearReaderOptions::default()
             .with_validate_chunk_crcs(true)
             .with_validate_data_section_crc(true)
             .with_validate_summary_section_crc(true)
-            .with_record_length_limit(256 << 20);
+            .with_record_length_limit(record_length_limit(unread));
         Ok(Self {
             path: path.to_path_buf(),
             file,
@@ -373,6 +437,7 @@ impl SequenceReader {
             current: None,
             seen: vec![false; manifest.instances.len()],
             done: false,
+            unread,
         })
     }
 
@@ -401,8 +466,22 @@ impl SequenceReader {
     fn advance(&mut self) -> Result<Option<Sequence>, DatasetError> {
         loop {
             let mut read_request = None;
-            let owned = match self.reader.next_event() {
-                None => {
+            // The `mcap` reader is guarded: with overflow checks (debug builds) version 0.26
+            // panics on a record longer than its uncompressed chunk (release builds wrap and
+            // fail later). A panic there is a corrupt file, not a crash.
+            let step = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                next_step(&mut self.reader)
+            }))
+            .unwrap_or_else(|panic| {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                Step::Invalid(format!("invalid MCAP (the reader failed: {what})"))
+            });
+            let owned = match step {
+                Step::End => {
                     if let Some(seq) = self.finish_current()? {
                         return Ok(Some(seq));
                     }
@@ -411,46 +490,27 @@ impl SequenceReader {
                     }
                     return Ok(None);
                 }
-                Some(Err(mcap::McapError::UnexpectedEof)) => {
-                    return Err(self.corrupt("truncated: the file ends before the MCAP footer"));
-                }
-                Some(Err(e)) => return Err(self.corrupt(format!("invalid MCAP: {e}"))),
-                Some(Ok(LinearReadEvent::ReadRequest(n))) => {
+                Step::Invalid(reason) => return Err(self.corrupt(reason)),
+                Step::Read(n) => {
                     read_request = Some(n);
                     Owned::Other
                 }
-                Some(Ok(LinearReadEvent::Record { opcode, data })) => {
-                    match mcap::parse_record(opcode, data) {
-                        Err(e) => return Err(self.corrupt(format!("invalid MCAP record: {e}"))),
-                        Ok(Record::Schema { header, .. }) => Owned::Schema {
-                            id: header.id,
-                            ok: header.name == "foxglove.PointCloud"
-                                && header.encoding == "protobuf",
-                            name: header.name,
-                        },
-                        Ok(Record::Channel(ch)) => Owned::Channel {
-                            id: ch.id,
-                            schema: ch.schema_id,
-                            encoding: ch.message_encoding.clone(),
-                            labels: ChannelLabels::from_metadata(&ch.metadata),
-                        },
-                        Ok(Record::Message { header, data }) => Owned::Message {
-                            channel: header.channel_id,
-                            frame: header.sequence,
-                            cloud: decode_point_cloud(&data),
-                        },
-                        Ok(_) => Owned::Other,
-                    }
-                }
+                Step::Record(owned) => owned,
             };
             if let Some(n) = read_request {
-                let want = n.clamp(64 << 10, 16 << 20);
+                // Reads of 64 KiB to 16 MiB, never beyond the end of the file: a corrupt length
+                // cannot make the buffer grow past the file's size (0 bytes left reads 0:
+                // the end of the file).
+                let want = n
+                    .clamp(64 << 10, 16 << 20)
+                    .min(usize::try_from(self.unread).unwrap_or(usize::MAX));
                 let buf = self.reader.insert(want);
                 let got = self
                     .file
                     .read(buf)
                     .map_err(|e| DatasetError::io(&self.path, e))?;
                 self.reader.notify_read(got);
+                self.unread = self.unread.saturating_sub(got as u64);
                 continue;
             }
             match owned {
@@ -540,7 +600,8 @@ impl SequenceReader {
                                 collection: labels.collection,
                                 category: labels.category,
                                 instance: labels.instance,
-                                frames: Vec::with_capacity(self.expected.frames),
+                                // Capped: the count is the manifest's, not yet the file's.
+                                frames: Vec::with_capacity(self.expected.frames.min(1024)),
                             },
                         ));
                     }
@@ -568,6 +629,90 @@ impl SequenceReader {
     }
 }
 
+/// One field of an MCAP record, for [`check_record_lengths`].
+#[derive(Clone, Copy)]
+enum Field {
+    /// `n` bytes.
+    Fixed(usize),
+    /// `u32` length + bytes (a string or the schema's data).
+    Bytes32,
+    /// `u64` length + bytes (an attachment's data).
+    Bytes64,
+    /// `u32` byte length + string → string entries.
+    StringMap,
+    /// `u32` byte length + fixed-size entries (maps of integers, index arrays).
+    Entries,
+}
+
+/// Checks that every length declared inside an MCAP record fits in the record's bytes, so
+/// that parsing it allocates no more than the record holds. (`mcap::parse_record` trusts
+/// string lengths: a corrupt one asks for up to 4 GiB, and a short attachment record panics.)
+fn check_record_lengths(opcode: u8, data: &[u8]) -> Result<(), String> {
+    use Field::*;
+    let fields: &[Field] = match opcode {
+        0x01 => &[Bytes32, Bytes32],                                 // header
+        0x02 => &[Fixed(20)],                                        // footer
+        0x03 => &[Fixed(2), Bytes32, Bytes32, Bytes32],              // schema
+        0x04 => &[Fixed(4), Bytes32, Bytes32, StringMap],            // channel
+        0x05 => &[Fixed(22)],                                        // message
+        0x06 => &[Fixed(28), Bytes32, Fixed(8)],                     // chunk
+        0x07 => &[Fixed(2), Entries],                                // message index
+        0x08 => &[Fixed(32), Entries, Fixed(8), Bytes32, Fixed(16)], // chunk index
+        0x09 => &[Fixed(16), Bytes32, Bytes32, Bytes64, Fixed(4)],   // attachment
+        0x0a => &[Fixed(40), Bytes32, Bytes32],                      // attachment index
+        0x0b => &[Fixed(42), Entries],                               // statistics
+        0x0c => &[Bytes32, StringMap],                               // metadata
+        0x0d => &[Fixed(16), Bytes32],                               // metadata index
+        0x0e => &[Fixed(17)],                                        // summary offset
+        0x0f => &[Fixed(4)],                                         // data end
+        _ => &[],
+    };
+    let short = |what: &str, need: u64, at: usize| {
+        format!(
+            "opcode {opcode:#04x}: {what} of {need} bytes at offset {at} overruns the {}-byte record",
+            data.len()
+        )
+    };
+    let len_at = |at: usize, width: usize| -> Result<u64, String> {
+        let b = data
+            .get(at..at + width)
+            .ok_or_else(|| short("a length field", width as u64, at))?;
+        Ok(if width == 4 {
+            u64::from(u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        } else {
+            u64::from_le_bytes(b.try_into().expect("8 bytes"))
+        })
+    };
+    // Skips `n` bytes from `at` within `end`.
+    let skip = |at: usize, n: u64, end: usize, what: &str| -> Result<usize, String> {
+        match usize::try_from(n).ok().and_then(|n| at.checked_add(n)) {
+            Some(next) if next <= end => Ok(next),
+            _ => Err(short(what, n, at)),
+        }
+    };
+    let mut at = 0usize;
+    for &field in fields {
+        at = match field {
+            Fixed(n) => skip(at, n as u64, data.len(), "a fixed field")?,
+            Bytes32 => skip(at + 4, len_at(at, 4)?, data.len(), "a string")?,
+            Bytes64 => skip(at + 8, len_at(at, 8)?, data.len(), "a byte array")?,
+            Entries => skip(at + 4, len_at(at, 4)?, data.len(), "an index")?,
+            StringMap => {
+                let end = skip(at + 4, len_at(at, 4)?, data.len(), "a map")?;
+                let mut p = at + 4;
+                while p < end {
+                    for _ in 0..2 {
+                        let n = len_at(p, 4)?;
+                        p = skip(p + 4, n, end, "a map entry")?;
+                    }
+                }
+                end
+            }
+        };
+    }
+    Ok(())
+}
+
 impl Iterator for SequenceReader {
     type Item = Result<Sequence, DatasetError>;
 
@@ -586,5 +731,57 @@ impl Iterator for SequenceReader {
                 Some(Err(e))
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn string(s: &str) -> Vec<u8> {
+        let mut b = (s.len() as u32).to_le_bytes().to_vec();
+        b.extend_from_slice(s.as_bytes());
+        b
+    }
+
+    #[test]
+    fn record_lengths_are_checked_before_parsing() {
+        // A channel as the writer makes it.
+        let mut map = string("frames");
+        map.extend(string("2"));
+        let mut channel = vec![1, 0, 1, 0];
+        channel.extend(string("/mug/mug_01"));
+        channel.extend(string("protobuf"));
+        channel.extend((map.len() as u32).to_le_bytes());
+        channel.extend(&map);
+        assert_eq!(check_record_lengths(0x04, &channel), Ok(()));
+        assert!(mcap::parse_record(0x04, &channel).is_ok());
+        // Its topic claiming 4 GiB: `mcap::parse_record` would allocate that much.
+        let mut huge = channel.clone();
+        huge[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        let err = check_record_lengths(0x04, &huge).unwrap_err();
+        assert!(err.contains("4294967295 bytes"), "{err}");
+        // A map entry running past the map.
+        let mut entry = channel.clone();
+        let at = channel.len() - map.len();
+        entry[at..at + 4].copy_from_slice(&1000u32.to_le_bytes());
+        assert!(check_record_lengths(0x04, &entry).is_err());
+        // An attachment ending right after its data length (no CRC): `mcap::parse_record`
+        // 0.26 slices past its end and panics.
+        let mut attachment = vec![0u8; 16];
+        attachment.extend(string(""));
+        attachment.extend(string(""));
+        attachment.extend(0u64.to_le_bytes());
+        assert!(check_record_lengths(0x09, &attachment).is_err());
+        attachment.extend(0u32.to_le_bytes());
+        assert_eq!(check_record_lengths(0x09, &attachment), Ok(()));
+        assert!(mcap::parse_record(0x09, &attachment).is_ok());
+    }
+
+    #[test]
+    fn the_record_length_limit_follows_the_file_size() {
+        assert_eq!(record_length_limit(0), 1 << 20);
+        assert_eq!(record_length_limit(100 << 10), 6400 << 10);
+        assert_eq!(record_length_limit(1 << 40), 256 << 20);
     }
 }

@@ -51,6 +51,8 @@ pub const MANIFEST_FILE: &str = "manifest.json";
 pub const FORMAT_NAME: &str = "lgdm-dataset";
 /// Version of the on-disk format.
 pub const FORMAT_VERSION: u32 = 1;
+/// The most views per sequence a manifest may declare (the spec's own bound).
+pub const MAX_FRAMES_PER_SEQUENCE: usize = 100_000;
 
 /// Errors of dataset generation and reading. Each says what went wrong and where.
 #[derive(Debug, thiserror::Error)]
@@ -135,6 +137,15 @@ pub enum DatasetError {
     /// Generation was cancelled because another worker failed.
     #[error("cancelled")]
     Cancelled,
+    /// A computed feature table does not describe its dataset (rows, labels, dimension or
+    /// non-finite values; see `FeatureTable::check_dataset`).
+    #[error("feature table of the dataset {}: {reason}", dataset.display())]
+    FeatureTable {
+        /// The dataset directory.
+        dataset: PathBuf,
+        /// What does not match.
+        reason: String,
+    },
 }
 
 impl DatasetError {
@@ -176,6 +187,10 @@ pub struct InstanceInfo {
     pub category: u32,
     /// `procedural` or the imported mesh file relative to the meshes directory.
     pub source: String,
+    /// For an imported mesh: its file, unit (guessed or given) and largest extent in metres;
+    /// absent for procedural objects.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub import: Option<crate::import::ImportReport>,
 }
 
 /// One collection file.
@@ -297,8 +312,43 @@ impl Manifest {
                 ));
             }
         }
-        if self.frames_per_sequence == 0 {
-            return Err("frames_per_sequence is 0".into());
+        if self.frames_per_sequence == 0 || self.frames_per_sequence > MAX_FRAMES_PER_SEQUENCE {
+            return Err(format!(
+                "frames_per_sequence is {}, expected 1..={MAX_FRAMES_PER_SEQUENCE}",
+                self.frames_per_sequence
+            ));
+        }
+        // Every collection holds one sequence per instance (the reader requires it), so the
+        // counts follow from the lists; checked arithmetic, as the numbers are the file's.
+        let per_collection = (self.instances.len() as u64)
+            .checked_mul(self.frames_per_sequence as u64)
+            .ok_or("instances × frames_per_sequence overflows")?;
+        let mut total = 0u64;
+        for (i, c) in self.collections.iter().enumerate() {
+            if c.sequences as usize != self.instances.len() {
+                return Err(format!(
+                    "collection {i} has {} sequences, the manifest lists {} instances",
+                    c.sequences,
+                    self.instances.len()
+                ));
+            }
+            if c.views != per_collection {
+                return Err(format!(
+                    "collection {i} has {} views, expected {} instances × {} frames = {per_collection}",
+                    c.views,
+                    self.instances.len(),
+                    self.frames_per_sequence
+                ));
+            }
+            total = total
+                .checked_add(c.views)
+                .ok_or("the views of the collections overflow")?;
+        }
+        if self.views != total {
+            return Err(format!(
+                "views is {}, the collections hold {total}",
+                self.views
+            ));
         }
         Ok(())
     }

@@ -14,6 +14,7 @@ Example::
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -47,17 +48,26 @@ def _points(points: Any) -> np.ndarray:
         return np.ascontiguousarray(arr, dtype=np.float32)
 
 
+def _count(name: str, value: Any, minimum: int) -> int:
+    """An integer argument ≥ ``minimum``; its upper bound is checked in Rust (the error names
+    the argument and the limit), here only that it fits in 64 bits."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
+    if value >= 2**63:
+        raise InputError(f"{name} is far too large (got {value})")
+    return int(value)
+
+
 def good_descriptor(points: Any, bins: int = 15) -> np.ndarray:
     """The GOOD shape descriptor (Kasaei et al. 2016) of one point cloud.
 
     ``points``: (N, 3) coordinates in metres (any real dtype, converted to float32).
     Returns ``3 * bins**2`` float32 values (675 for 15 bins): three orthographic projections
     in a PCA local frame, each normalised to sum 1. Raises :class:`InputError` for an empty
-    cloud, NaN/infinite coordinates or ``bins < 1``.
+    cloud, NaN/infinite coordinates or ``bins`` outside 1..256.
     """
-    if isinstance(bins, bool) or not isinstance(bins, (int, np.integer)) or bins < 1:
-        raise InputError(f"bins must be an integer ≥ 1, got {bins!r}")
-    return _lgdm.good_descriptor(_points(points), int(bins))
+    bins = _count("bins", bins, 1)
+    return _lgdm.good_descriptor(_points(points), bins)
 
 
 def good_features(
@@ -70,14 +80,37 @@ def good_features(
     int64 ``collection``, ``category``, ``instance``, ``sequence`` (unique per collection and
     object) and ``frame``. The values are those ``lgdm train``/``lgdm eval`` use. Beside the
     rows, what :func:`lgdm.run_scenario` needs: the manifest's ``train_collections`` and
-    ``test_collections`` (lists), the ``categories`` names, the ``dataset`` directory and the
-    ``encoder`` (``"good"``).
+    ``test_collections`` (lists), the ``categories`` and ``instances`` names, the ``dataset``
+    directory and the ``encoder`` (``"good"``). Raises :class:`InputError` for ``bins`` outside
+    1..256.
     """
+    bins = _count("bins", bins, 1)
     if not isinstance(dataset, Dataset):
         dataset = Dataset(os.fspath(dataset))
-    if isinstance(bins, bool) or not isinstance(bins, (int, np.integer)) or bins < 1:
-        raise InputError(f"bins must be an integer ≥ 1, got {bins!r}")
-    return _lgdm.good_features(dataset, int(bins))
+    return _lgdm.good_features(dataset, bins)
+
+
+def _unit_entries(units: Any) -> list[str] | None:
+    """``units`` of :func:`generate_dataset` as ``--units`` entries."""
+    if units is None:
+        return None
+    if isinstance(units, str):
+        return [units]
+    if isinstance(units, Mapping):
+        entries = []
+        for file, unit in units.items():
+            if not isinstance(file, (str, os.PathLike)) or not isinstance(unit, str):
+                raise InputError(
+                    "units must map mesh files ('<category>/<file>', or '*' for every other "
+                    f"file) to 'mm', 'cm' or 'm', got {file!r}: {unit!r}"
+                )
+            file = os.fspath(file)
+            entries.append(unit if file == "*" else f"{file}={unit}")
+        return entries
+    raise InputError(
+        "units must be 'mm', 'cm' or 'm' (every mesh) or a dict "
+        f"{{'<category>/<file>': unit, '*': unit}}, got {type(units).__name__}"
+    )
 
 
 def generate_dataset(
@@ -88,11 +121,19 @@ def generate_dataset(
     frames: int | None = None,
     grasp_images: int | None = None,
     meshes: str | os.PathLike[str] | None = None,
+    units: str | Mapping[str, str] | None = None,
 ) -> Dataset:
     """Generates a sequential point-cloud dataset into ``out`` and opens it, exactly as
     ``lgdm gen-dataset --out OUT --preset PRESET --seed SEED [--frames N] [--grasp-images N]
-    [--meshes DIR]`` does (same files). ``preset``: ``"small"`` (10 categories × 3 instances,
-    15 collections, 10 frames per sequence) or ``"paper"`` (10 × 5, 100 frames)."""
+    [--meshes DIR] [--units ...]`` does (same files). ``preset``: ``"small"`` (10 categories ×
+    3 instances, 15 collections, 10 frames per sequence) or ``"paper"`` (10 × 5, 100 frames).
+
+    ``units`` (with ``meshes`` only): ``"mm"``, ``"cm"`` or ``"m"`` for every mesh file, or a
+    dict from files (``"<category>/<file>"``, relative to ``meshes``; ``"*"`` for every other
+    file) to units. Without it each file's unit is guessed from its size (household objects
+    are 2 cm to 60 cm); a size that fits two units (20 to 60 file units: mm or cm) or none
+    raises :class:`DatasetError` asking for the unit. The unit, how it was chosen and the
+    resulting size are in each instance's ``"import"`` entry of :attr:`Dataset.instances`."""
     return _lgdm.generate_dataset(
         os.fspath(out),
         preset,
@@ -100,6 +141,7 @@ def generate_dataset(
         frames=frames,
         grasp_images=grasp_images,
         meshes=None if meshes is None else os.fspath(meshes),
+        units=_unit_entries(units),
     )
 
 
@@ -132,19 +174,15 @@ def project_to_image(
     z-buffer. Returns ``depth_m`` (size, size) float32 metres (0 = empty),
     ``depth_normalized`` (size, size) float32 in [0, 1] (near = 1, empty = 0) and ``rgb``
     (size, size, 3) uint8, or None without colours. Raises :class:`InputError` if no point
-    lies in front of the camera.
+    lies in front of the camera, or for ``size`` outside 1..4096, ``splat_px`` outside 0..64
+    or ``margin`` outside [0, 0.5).
     """
-    pts = _points(points)
-    for name, value in (("size", size), ("splat_px", splat_px)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise InputError(f"{name} must be an integer ≥ 0, got {value!r}")
-    if size < 1:
-        raise InputError("size must be at least 1")
+    size = _count("size", size, 1)
+    splat_px = _count("splat_px", splat_px, 0)
     if not (isinstance(margin, (int, float, np.floating)) and 0.0 <= margin < 0.5):
         raise InputError(f"margin must be a number in [0, 0.5), got {margin!r}")
-    return _lgdm.project_to_image(
-        pts, _colors(colors, len(pts)), int(size), float(margin), int(splat_px)
-    )
+    pts = _points(points)
+    return _lgdm.project_to_image(pts, _colors(colors, len(pts)), size, float(margin), splat_px)
 
 
 def view_entropy(points: Any) -> float:
