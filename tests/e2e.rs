@@ -412,3 +412,89 @@ fn merged_single_trial_runs_equal_one_multi_trial_run() {
         );
     }
 }
+
+/// `gen-dataset --meshes`: a mesh whose size fits two units (a 43 mm golf ball is also a
+/// plausible 43 cm) stops with an error asking for `--units` and writes nothing; with `--units`
+/// (every file or one file) each mesh's unit and size are printed, guessed ones marked.
+#[test]
+fn gen_dataset_asks_for_mesh_units_and_prints_them() {
+    let base = work_dir().join("units");
+    let meshes = base.join("meshes");
+    std::fs::create_dir_all(meshes.join("ball")).unwrap();
+    std::fs::create_dir_all(meshes.join("cup")).unwrap();
+    // An octahedron 43 mm across and a 50 × 50 × 62 mm box, in millimetres.
+    let r = 21.5;
+    let mut ball = String::new();
+    for v in [
+        [r, 0.0, 0.0],
+        [-r, 0.0, 0.0],
+        [0.0, r, 0.0],
+        [0.0, -r, 0.0],
+        [0.0, 0.0, r],
+        [0.0, 0.0, -r],
+    ] {
+        ball += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+    }
+    ball += "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+    std::fs::write(meshes.join("ball/golf_ball.obj"), ball).unwrap();
+    let mut cup = String::new();
+    for x in [0.0, 50.0] {
+        for y in [0.0, 50.0] {
+            for z in [0.0, 62.0] {
+                cup += &format!("v {x} {y} {z}\n");
+            }
+        }
+    }
+    cup += "f 1 2 4\nf 1 4 3\nf 5 7 8\nf 5 8 6\nf 1 5 6\nf 1 6 2\n\
+            f 3 4 8\nf 3 8 7\nf 1 3 7\nf 1 7 5\nf 2 6 8\nf 2 8 4\n";
+    std::fs::write(meshes.join("cup/espresso.obj"), cup).unwrap();
+    let gen_dataset = |out: &Path, units: &[&str]| {
+        let mut cmd = lgdm(&work_dir().join("cache"));
+        cmd.args(["gen-dataset", "--preset", "small", "--frames", "2"])
+            .args(["--grasp-images", "1", "--progress", "none", "--meshes"])
+            .arg(&meshes)
+            .arg("--out")
+            .arg(out);
+        for u in units {
+            cmd.args(["--units", u]);
+        }
+        cmd.output().unwrap()
+    };
+
+    let refused = base.join("refused");
+    let out = gen_dataset(&refused, &[]);
+    assert!(!out.status.success(), "an ambiguous unit was accepted");
+    let err = String::from_utf8_lossy(&out.stderr);
+    for part in [
+        "golf_ball.obj",
+        "43 mm = 0.043 m or 43 cm = 0.43 m",
+        "--units ball/golf_ball.obj=mm|cm|m",
+    ] {
+        assert!(err.contains(part), "`{part}` missing from: {err}");
+    }
+    assert!(!refused.exists(), "output written despite the error");
+    let out = gen_dataset(&refused, &["inch"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown unit `inch`"));
+    assert!(!refused.exists());
+
+    let out = check(gen_dataset(&base.join("all_mm"), &["mm"]), "--units mm");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for line in [
+        "mesh ball/golf_ball.obj: units mm (given), largest extent 0.043 m",
+        "mesh cup/espresso.obj: units mm (given), largest extent 0.062 m",
+    ] {
+        assert!(stdout.contains(line), "`{line}` missing from: {stdout}");
+    }
+    let out = check(
+        gen_dataset(&base.join("one_file"), &["ball/golf_ball.obj=mm"]),
+        "--units FILE=mm",
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for line in [
+        "mesh ball/golf_ball.obj: units mm (given for this file), largest extent 0.043 m",
+        "mesh cup/espresso.obj: units mm (guessed), largest extent 0.062 m",
+    ] {
+        assert!(stdout.contains(line), "`{line}` missing from: {stdout}");
+    }
+}

@@ -74,6 +74,14 @@ impl FeatureSource {
         }
     }
 
+    /// The feature dimension this source gives (known before any feature is computed).
+    pub fn dim(&self) -> usize {
+        match self {
+            FeatureSource::Good => 3 * GOOD_BINS * GOOD_BINS,
+            FeatureSource::Ae { .. } => ae::FEATURE_DIM,
+        }
+    }
+
     /// The autoencoder checkpoint, if this source has one.
     pub fn ae_checkpoint(&self) -> Option<&Path> {
         match self {
@@ -118,10 +126,11 @@ pub fn features(ds: &Dataset, source: &FeatureSource, reporter: &Reporter) -> Re
         Some(hash) => vec![ae::PIPELINE.as_bytes(), hash],
         None => vec![],
     };
-    FeatureCache::new(&cache_dir()?).get_or_compute(
+    FeatureCache::new(&cache_dir()?).get_or_compute_with_dim(
         ds,
         source.encoder().name(),
         &extra,
+        source.dim(),
         || compute_features(ds, source, reporter),
         &mut |path, e| {
             reporter.message(&format!(
@@ -158,6 +167,7 @@ pub fn table<'a>(
     train_collections: &'a [u32],
     test_collections: &'a [u32],
     category_names: &'a [String],
+    instance_names: &'a [String],
 ) -> lgdm_gdm::experiment::Table<'a> {
     lgdm_gdm::experiment::Table {
         features: &features.features,
@@ -170,6 +180,7 @@ pub fn table<'a>(
         train_collections,
         test_collections,
         category_names,
+        instance_names,
     }
 }
 

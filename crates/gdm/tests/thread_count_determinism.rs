@@ -60,6 +60,7 @@ fn table(d: &Data) -> Table<'_> {
         train_collections: &[0, 1, 2, 3],
         test_collections: &[4, 5],
         category_names: &d.names,
+        instance_names: &[],
     }
 }
 

@@ -75,7 +75,7 @@ pub fn scenario_defaults<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py
 #[pyfunction]
 #[pyo3(signature = (
     features_, collection, category, instance, sequence, frame, train_collections,
-    test_collections, categories, scenario_name, *, config=None, trials=None, seed=0,
+    test_collections, categories, scenario_name, *, instances=Vec::new(), config=None, trials=None, seed=0,
     replay=None, context=true, epochs=None, eval_every=None, eval_samples=None, train_samples=0,
     validate=false, jobs=None, encoder="good", dataset=""
 ))]
@@ -92,6 +92,7 @@ pub fn run_scenario(
     test_collections: Vec<u32>,
     categories: Vec<String>,
     scenario_name: &str,
+    instances: Vec<String>,
     config: Option<&str>,
     trials: Option<usize>,
     seed: u64,
@@ -140,6 +141,7 @@ pub fn run_scenario(
         train_collections: &train_collections,
         test_collections: &test_collections,
         category_names: &categories,
+        instance_names: &instances,
     };
     let experiment = Experiment::new(table, settings).map_err(experiment_error)?;
     let runs = py

@@ -46,12 +46,73 @@ pub struct Args {
     /// Predict without temporal context (K = 0 at test time).
     #[arg(long)]
     pub no_context: bool,
-    /// Where to write confusion.csv, confusion.png and eval.json (default: beside the model).
+    /// Where to write confusion.csv, confusion.png and eval.json (default: `eval/` beside the
+    /// model).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Score the model even though the dataset's category or instance names differ from those
+    /// of the run that trained it (its metrics.json beside the model).
+    #[arg(long)]
+    pub allow_other_labels: bool,
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
+}
+
+/// Whether two paths name the same file (both resolved where they exist).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+/// Compares the dataset's names with those the model's run recorded (metrics.json beside the
+/// model): a model of other categories would be scored against the wrong names.
+fn check_labels(
+    args: &Args,
+    categories: &[String],
+    instances: &[lgdm_pointcloud::dataset::InstanceInfo],
+    reporter: &Reporter,
+) -> Result<()> {
+    let Some(dir) = args.model.parent() else {
+        return Ok(());
+    };
+    let path = dir.join(lgdm_gdm::experiment::run_dir::METRICS_FILE);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        reporter.message(&format!(
+            "note: no run record ({}) beside the model: its category names cannot be checked \
+             against the dataset's",
+            path.display()
+        ));
+        return Ok(());
+    };
+    let run: lgdm_gdm::experiment::RunMetrics =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let names: Vec<String> = instances.iter().map(|i| i.name.clone()).collect();
+    let mismatch = if run.categories != categories {
+        Some(format!(
+            "the model's run learnt categories {:?}, the dataset has {:?}",
+            run.categories, categories
+        ))
+    } else if !run.instances.is_empty() && run.instances != names {
+        Some(format!(
+            "the model's run learnt instances {:?}, the dataset has {:?}",
+            run.instances, names
+        ))
+    } else {
+        None
+    };
+    match mismatch {
+        Some(m) if !args.allow_other_labels => bail!(
+            "{m} ({}); scores would compare unrelated labels. Pass --allow-other-labels to score \
+             it anyway",
+            path.display()
+        ),
+        Some(m) => reporter.message(&format!("warning: {m}")),
+        None => {}
+    }
+    Ok(())
 }
 
 /// Runs `lgdm eval`.
@@ -60,23 +121,48 @@ pub fn run(args: Args) -> Result<()> {
     let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
     let gdm = Gdm::load(&args.model)
         .with_context(|| format!("loading the model {}", args.model.display()))?;
-    let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
-    let table = data::features(&ds, &source, &reporter)?;
-    if table.dim != gdm.dim() {
+    if source.dim() != gdm.dim() {
         bail!(
             "the model expects {}-d features but the {} encoder gives {}-d: was it trained with another encoder?",
             gdm.dim(),
             args.encoder.name(),
-            table.dim
+            source.dim()
         );
     }
+    let out = match &args.out {
+        Some(d) => d.clone(),
+        None => args
+            .model
+            .parent()
+            .map(|p| p.to_path_buf())
+            .unwrap_or_default()
+            .join("eval"),
+    };
+    for name in ["", "confusion.csv", "confusion.png", "eval.json"] {
+        let target = if name.is_empty() {
+            out.clone()
+        } else {
+            out.join(name)
+        };
+        if same_file(&target, &args.model) {
+            bail!(
+                "--out {} would write {} over the model being scored ({}); choose another --out",
+                out.display(),
+                target.display(),
+                args.model.display()
+            );
+        }
+    }
+    let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
     let manifest = ds.manifest();
+    check_labels(&args, &manifest.categories, &manifest.instances, &reporter)?;
+    let table = data::features(&ds, &source, &reporter)?;
     let wanted: Vec<u32> = match args.split {
         EvalSplit::All => manifest.collections.iter().map(|c| c.index).collect(),
         EvalSplit::Test => manifest.collections_in(Split::Test),
         EvalSplit::Train => manifest.collections_in(Split::Train),
     };
-    let view = data::table(&table, &[], &[], &manifest.categories);
+    let view = data::table(&table, &[], &[], &manifest.categories, &[]);
     let e = evaluate(
         &gdm,
         &view,
@@ -101,15 +187,6 @@ pub fn run(args: Args) -> Result<()> {
         "inference_ms_per_sample": e.ms_per_sample,
     });
 
-    let out = match &args.out {
-        Some(d) => d.clone(),
-        None => args
-            .model
-            .parent()
-            .map(|p| p.to_path_buf())
-            .unwrap_or_default()
-            .join("eval"),
-    };
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mut csv = String::from("true\\predicted");
     for name in &manifest.categories {

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
-use lgdm_gdm::experiment::run_dir::{self, Run, merge};
+use lgdm_gdm::experiment::run_dir::{self, Run, RunDir, merge};
 
 use crate::report;
 
@@ -23,10 +23,13 @@ pub struct Args {
     /// Run directories written by `lgdm train` (each with metrics.json and config.toml).
     #[arg(required = true, num_args = 1..)]
     pub runs: Vec<PathBuf>,
-    /// Output run directory (created if needed): metrics.json, config.toml, plots, summary.txt
-    /// and links to the trials' models.
+    /// Output run directory, new or empty (none of the inputs): metrics.json, config.toml,
+    /// plots, summary.txt and links to the trials' models.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace the run already in `--out` (its files are removed first; never an input).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `lgdm merge`.
@@ -47,8 +50,17 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let out = &args.out;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let missing = merged.write(out)?;
+    let resolved = |p: &std::path::Path| std::fs::canonicalize(p).unwrap_or(p.to_path_buf());
+    if let Some(input) = args.runs.iter().find(|r| resolved(r) == resolved(out)) {
+        anyhow::bail!(
+            "--out {} is one of the runs being merged ({}): the merge would overwrite its own \
+             input; choose a new directory",
+            out.display(),
+            input.display()
+        );
+    }
+    let run_dir = RunDir::create(out, args.force)?;
+    let missing = merged.write(&run_dir)?;
     crate::plot::write_run_plots(out, metrics).context("drawing the plots")?;
     let table = report::summary_table(metrics);
     run_dir::write_atomic(&out.join("summary.txt"), table.as_bytes())?;

@@ -1,14 +1,13 @@
 //! `lgdm train`: run one of the paper's lifelong-learning scenarios over several trials and
-//! write the model(s), `metrics.json`, `config.toml`, plots and a summary table.
+//! write the model(s), `metrics.json`, `config.toml`, plots and a summary table into a run
+//! directory it owns (`lgdm_gdm::experiment::run_dir::RunDir`): a fresh one, an old run replaced
+//! with `--force`, or an interrupted run finished with `--resume`.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args as ClapArgs;
 use lgdm_gdm::GdmConfig;
-use lgdm_gdm::experiment::run_dir::{self, Provenance, Run, RunConfig};
-use lgdm_gdm::experiment::{
-    DEFAULT_EVAL_SAMPLES, DEFAULT_TRIALS, Experiment, Scenario, Settings, StepProgress,
-};
-use serde::Deserialize;
+use lgdm_gdm::experiment::run_dir::{Provenance, RunConfig, RunDir};
+use lgdm_gdm::experiment::{Experiment, Scenario, Settings, StepProgress};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -16,40 +15,65 @@ use crate::data::{self, Encoder};
 use crate::progress::{ProgressMode, Reporter};
 use crate::report;
 
+/// Flags that describe the experiment: none of them may accompany `--resume`.
+const EXPERIMENT_FLAGS: [&str; 17] = [
+    "scenario",
+    "dataset",
+    "encoder",
+    "ae_checkpoint",
+    "config",
+    "preset",
+    "trials",
+    "replay",
+    "no_replay",
+    "no_context",
+    "epochs",
+    "eval_every",
+    "eval_samples",
+    "train_samples",
+    "validate",
+    "seed",
+    "out",
+];
+
 /// Arguments of `lgdm train`.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
-    /// The learning protocol (see README, "Scenarios").
+    /// The learning protocol (see README, "Scenarios"); may be left out with `--config` of a
+    /// run's config.toml (the run's scenario) or `--resume`.
     #[arg(long, value_parser = scenario_parser())]
-    pub scenario: Scenario,
+    pub scenario: Option<Scenario>,
     /// Dataset directory written by `lgdm gen-dataset` (default: the embedded small dataset,
     /// generated into the cache directory on first use).
     #[arg(long)]
     pub dataset: Option<PathBuf>,
-    /// Feature encoder: good (GOOD descriptor, Rust) or ae (the torch autoencoder; needs a
-    /// build with `--features ae` and torch + python/train_ae in a venv).
-    #[arg(long, value_enum, default_value_t = Encoder::Good)]
-    pub encoder: Encoder,
+    /// Feature encoder: good (GOOD descriptor, Rust; default) or ae (the torch autoencoder;
+    /// needs a build with `--features ae` and torch + python/train_ae in a venv).
+    #[arg(long, value_enum)]
+    pub encoder: Option<Encoder>,
     /// Autoencoder checkpoint for `--encoder ae` (default: the one shipped with train_ae,
     /// `train_ae.bridge.default_checkpoint()`).
     #[arg(long, value_name = "PATH")]
     pub ae_checkpoint: Option<PathBuf>,
-    /// GDM hyperparameters from a TOML file (a `GdmConfig`, or a run's `config.toml`).
+    /// Settings from a TOML file: a `GdmConfig` (hyperparameters only), or a run's
+    /// `config.toml`, whose every setting (scenario, dataset, encoder, trials, seed, replay,
+    /// epochs, evaluation, hyperparameters) is used unless a flag says otherwise.
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
     /// A named hyperparameter preset: paper_batch or paper_incremental, exactly as in the paper
-    /// (default: the scenario's preset with thresholds calibrated for the encoder).
+    /// (default: the scenario's preset).
     #[arg(long)]
     pub preset: Option<String>,
-    /// Number of trials (different seeds, orders and held-out instances) to average over.
-    #[arg(long, default_value_t = DEFAULT_TRIALS)]
-    pub trials: usize,
+    /// Number of trials (different seeds, orders and held-out instances) to average over
+    /// (default: 3).
+    #[arg(long)]
+    pub trials: Option<usize>,
     /// Trials run at the same time, in parallel threads (default: the number of cores). The
     /// results do not depend on it.
     #[arg(long)]
     pub jobs: Option<usize>,
     /// Intrinsic replay after every step (default: on, except for batch).
-    #[arg(long, overrides_with = "no_replay")]
+    #[arg(long, conflicts_with = "no_replay")]
     pub replay: bool,
     /// No intrinsic replay.
     #[arg(long)]
@@ -64,47 +88,69 @@ pub struct Args {
     #[arg(long)]
     pub eval_every: Option<usize>,
     /// Per-step evaluations use at most this many samples per set (whole sequences, drawn with
-    /// the trial's seed); 0 = all. The final figures always use the whole test set.
-    #[arg(long, default_value_t = DEFAULT_EVAL_SAMPLES)]
-    pub eval_samples: usize,
+    /// the trial's seed); 0 = all (default: 3000). The final figures always use the whole test
+    /// set.
+    #[arg(long)]
+    pub eval_samples: Option<usize>,
     /// Batch only: train on about N samples per epoch, the same per-trial subset of whole
     /// training sequences every epoch, N / categories per category (the paper's batch runs use
-    /// 3000); 0 = all training sequences.
-    #[arg(long, default_value_t = 0)]
-    pub train_samples: usize,
+    /// 3000); 0 = all training sequences (default).
+    #[arg(long)]
+    pub train_samples: Option<usize>,
     /// Validation mode for choosing hyperparameters: the last two training collections (in
     /// manifest order) stand in for the test set and the test collections are not touched.
     #[arg(long)]
     pub validate: bool,
-    /// Base seed; trial t uses seed + t.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Run directory (default: runs/<scenario>-<n>, the first free n).
+    /// Base seed; trial t uses seed + t (default: 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Run directory (default: runs/<scenario>-<n>, the first free n). It must be new or empty.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Replace the run already in `--out` (its files are removed first).
+    #[arg(long, requires = "out")]
+    pub force: bool,
+    /// Finish the interrupted run in this directory with its own settings: the trials it
+    /// recorded are kept, the others are run; the result is what an uninterrupted run gives.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = EXPERIMENT_FLAGS, conflicts_with = "force")]
+    pub resume: Option<PathBuf>,
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
 }
 
-#[derive(Deserialize)]
-struct WithGdm {
-    gdm: GdmConfig,
+/// What `--config` held.
+enum ConfigFile {
+    /// Hyperparameters only.
+    Gdm(Box<GdmConfig>),
+    /// A run's config.toml.
+    Run(Box<RunConfig>),
 }
 
-/// Reads hyperparameters from TOML: a bare `GdmConfig` or a run's `config.toml`.
-pub fn read_config(path: &Path) -> Result<GdmConfig> {
+/// Reads `--config`: a run's `config.toml` (it has a `[gdm]` table) or a bare `GdmConfig`;
+/// errors name the offending key and line.
+fn read_config(path: &Path) -> Result<ConfigFile> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let config = match toml::from_str::<WithGdm>(&text) {
-        Ok(w) => w.gdm,
-        Err(_) => toml::from_str::<GdmConfig>(&text)
-            .with_context(|| format!("parsing {}", path.display()))?,
+    let table: toml::Table =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let file = if table.contains_key("gdm") {
+        let run = RunConfig::from_toml(&text)
+            .map_err(|e| anyhow::anyhow!("{e}"))
+            .with_context(|| format!("parsing the run config {}", path.display()))?;
+        ConfigFile::Run(Box::new(run))
+    } else {
+        ConfigFile::Gdm(Box::new(toml::from_str::<GdmConfig>(&text).with_context(
+            || format!("parsing the hyperparameters in {}", path.display()),
+        )?))
     };
-    config
-        .validate()
+    let gdm = match &file {
+        ConfigFile::Gdm(g) => g,
+        ConfigFile::Run(r) => &r.gdm,
+    };
+    gdm.validate()
         .with_context(|| format!("invalid hyperparameters in {}", path.display()))?;
-    Ok(config)
+    Ok(file)
 }
 
 /// `--scenario`'s parser: the library's names, listed in `--help`.
@@ -116,24 +162,87 @@ fn scenario_parser() -> impl clap::builder::TypedValueParser<Value = Scenario> {
     })
 }
 
-/// The experiment settings of the arguments, and a note on where the hyperparameters came from.
-fn settings(args: &Args) -> Result<(Settings, String)> {
-    let mut settings = Settings::new(args.scenario);
-    let from = if let Some(path) = &args.config {
-        settings.config = read_config(path)?;
-        format!("file {}", path.display())
-    } else if let Some(name) = &args.preset {
-        settings.config =
-            GdmConfig::preset(name).with_context(|| format!("unknown preset {name:?}"))?;
-        format!("preset {name}")
-    } else {
-        format!("preset {}", args.scenario.default_preset())
+/// What a run needs besides its settings: the data and where the settings came from.
+struct Plan {
+    settings: Settings,
+    from: String,
+    encoder: Encoder,
+    dataset: Option<PathBuf>,
+    ae_checkpoint: Option<PathBuf>,
+}
+
+/// The experiment of the arguments: defaults from the library (or a run's config.toml given
+/// with `--config`), then the flags.
+fn plan(args: &Args, reporter: &Reporter) -> Result<Plan> {
+    let config = args.config.as_deref().map(read_config).transpose()?;
+    let (mut settings, from, mut encoder, mut dataset, mut ae_checkpoint) = match config {
+        Some(ConfigFile::Run(run)) => {
+            let path = args.config.as_deref().expect("read from --config");
+            if let Some(s) = args.scenario
+                && s != run.scenario
+            {
+                bail!(
+                    "{} is a {} run's config; --scenario {s} differs (leave --scenario out to \
+                     use the run's)",
+                    path.display(),
+                    run.scenario
+                );
+            }
+            let encoder = match run.encoder.as_str() {
+                "good" => Encoder::Good,
+                "ae" => Encoder::Ae,
+                other => bail!("{}: unknown encoder {other:?}", path.display()),
+            };
+            reporter.message(&format!(
+                "settings from the run config {}: scenario {}, {} trial(s), seed {}, replay {}, \
+                 {} epoch(s), eval every {} step(s), encoder {}, dataset {} (flags override)",
+                path.display(),
+                run.scenario,
+                run.trials,
+                run.seed,
+                if run.replay { "on" } else { "off" },
+                run.epochs,
+                run.eval_every,
+                run.encoder,
+                run.dataset
+            ));
+            (
+                run.settings(),
+                format!("run config {}", path.display()),
+                encoder,
+                Some(PathBuf::from(&run.dataset)),
+                run.ae_checkpoint.as_ref().map(PathBuf::from),
+            )
+        }
+        other => {
+            let Some(scenario) = args.scenario else {
+                bail!("--scenario is required (or --config with a run's config.toml, or --resume)");
+            };
+            let mut settings = Settings::new(scenario);
+            let from = match (other, &args.preset) {
+                (Some(ConfigFile::Gdm(gdm)), _) => {
+                    settings.config = *gdm;
+                    format!("file {}", args.config.as_deref().expect("read").display())
+                }
+                (_, Some(name)) => {
+                    settings.config = GdmConfig::preset(name)
+                        .with_context(|| format!("unknown preset {name:?}"))?;
+                    format!("preset {name}")
+                }
+                _ => format!("preset {}", scenario.default_preset()),
+            };
+            (settings, from, Encoder::Good, None, None)
+        }
     };
     if args.no_context {
         settings = settings.without_context();
     }
-    settings.trials = args.trials;
-    settings.seed = args.seed;
+    if let Some(t) = args.trials {
+        settings.trials = t;
+    }
+    if let Some(seed) = args.seed {
+        settings.seed = seed;
+    }
     if args.no_replay {
         settings.replay = false;
     } else if args.replay {
@@ -142,11 +251,46 @@ fn settings(args: &Args) -> Result<(Settings, String)> {
     if let Some(epochs) = args.epochs {
         settings.epochs = epochs;
     }
-    settings.eval_every = args.eval_every;
-    settings.eval_samples = args.eval_samples;
-    settings.train_samples = args.train_samples;
-    settings.validate = args.validate;
-    Ok((settings, from))
+    if args.eval_every.is_some() {
+        settings.eval_every = args.eval_every;
+    }
+    if let Some(n) = args.eval_samples {
+        settings.eval_samples = n;
+    }
+    if let Some(n) = args.train_samples {
+        settings.train_samples = n;
+    }
+    if args.validate {
+        settings.validate = true;
+    }
+    if let Some(e) = args.encoder {
+        if e != encoder {
+            ae_checkpoint = None;
+        }
+        encoder = e;
+    }
+    if args.ae_checkpoint.is_some() {
+        ae_checkpoint = args.ae_checkpoint.clone();
+    }
+    if args.dataset.is_some() {
+        dataset = args.dataset.clone();
+    }
+    if encoder == Encoder::Good {
+        if let Some(p) = &args.ae_checkpoint {
+            bail!(
+                "--ae-checkpoint {} only applies to --encoder ae (the encoder is good)",
+                p.display()
+            );
+        }
+        ae_checkpoint = None;
+    }
+    Ok(Plan {
+        settings,
+        from,
+        encoder,
+        dataset,
+        ae_checkpoint,
+    })
 }
 
 fn default_run_dir(scenario: Scenario) -> PathBuf {
@@ -163,7 +307,7 @@ fn default_run_dir(scenario: Scenario) -> PathBuf {
 /// `--jobs`, or the number of cores.
 fn jobs(requested: Option<usize>) -> Result<usize> {
     match requested {
-        Some(0) => anyhow::bail!("--jobs must be at least 1"),
+        Some(0) => bail!("--jobs must be at least 1"),
         Some(n) => Ok(n),
         None => Ok(lgdm_gdm::experiment::default_jobs()),
     }
@@ -172,37 +316,62 @@ fn jobs(requested: Option<usize>) -> Result<usize> {
 /// Runs `lgdm train`.
 pub fn run(args: Args) -> Result<()> {
     let reporter = Reporter::new(args.progress);
-    let (settings, from) = settings(&args)?;
     let jobs = jobs(args.jobs)?;
-    let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
-    let ds = data::open_dataset(args.dataset.as_deref(), &reporter)?;
+    // The run directory is taken only once the settings and the encoder check out, so a
+    // refused run leaves nothing behind.
+    let (run_dir, plan, source, recorded) = match &args.resume {
+        Some(dir) => {
+            let (run_dir, config) = RunDir::resume(dir)?;
+            let encoder = match config.encoder.as_str() {
+                "good" => Encoder::Good,
+                "ae" => Encoder::Ae,
+                other => bail!("{}: unknown encoder {other:?}", dir.display()),
+            };
+            let plan = Plan {
+                settings: config.settings(),
+                from: config.hyperparameters_from.clone(),
+                encoder,
+                dataset: Some(PathBuf::from(&config.dataset)),
+                ae_checkpoint: config.ae_checkpoint.as_ref().map(PathBuf::from),
+            };
+            let source = data::FeatureSource::resolve(plan.encoder, plan.ae_checkpoint.as_deref())?;
+            (run_dir, plan, source, Some(config))
+        }
+        None => {
+            let plan = plan(&args, &reporter)?;
+            let source = data::FeatureSource::resolve(plan.encoder, plan.ae_checkpoint.as_deref())?;
+            let out = args
+                .out
+                .clone()
+                .unwrap_or_else(|| default_run_dir(plan.settings.scenario));
+            (RunDir::create(&out, args.force)?, plan, source, None)
+        }
+    };
+    let ds = data::open_dataset(plan.dataset.as_deref(), &reporter)?;
     let features = data::features(&ds, &source, &reporter)?;
     let manifest = ds.manifest();
     let train_collections = manifest.collections_in(lgdm_pointcloud::dataset::Split::Train);
     let test_collections = manifest.collections_in(lgdm_pointcloud::dataset::Split::Test);
+    let instance_names: Vec<String> = manifest.instances.iter().map(|i| i.name.clone()).collect();
     let table = data::table(
         &features,
         &train_collections,
         &test_collections,
         &manifest.categories,
+        &instance_names,
     );
-    let experiment = Experiment::new(table, settings)?;
-    if args.validate {
+    let experiment = Experiment::new(table, plan.settings)?;
+    if experiment.settings().validate {
         reporter.message(&format!(
             "validation mode: collections {:?} are the evaluation set; the test collections are not used",
             experiment.test_collections()
         ));
     }
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| default_run_dir(args.scenario));
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let dataset = ds.dir().display().to_string();
     let provenance = Provenance {
-        encoder: args.encoder.name().into(),
+        encoder: plan.encoder.name().into(),
         dataset: dataset.clone(),
-        hyperparameters_from: from,
+        hyperparameters_from: plan.from,
         ae_checkpoint: source.ae_checkpoint().map(|p| p.display().to_string()),
         ae_checkpoint_fnv1a: source
             .ae_checkpoint()
@@ -210,17 +379,38 @@ pub fn run(args: Args) -> Result<()> {
             .transpose()?,
     };
     let run_config = RunConfig::new(&experiment, &provenance);
-    run_dir::write_atomic(
-        &out.join(run_dir::CONFIG_FILE),
-        run_config.to_toml().as_bytes(),
-    )?;
-
     let s = experiment.settings();
+    let finished = match &recorded {
+        Some(config) => {
+            if *config != run_config {
+                bail!(
+                    "{} cannot be resumed as it was started: its config.toml no longer matches \
+                     (the dataset or the autoencoder checkpoint changed?)",
+                    run_dir.path().display()
+                );
+            }
+            run_dir.finished_trials(s.trials)?
+        }
+        None => {
+            run_dir.write_config(&run_config)?;
+            vec![None; s.trials]
+        }
+    };
+    let todo: Vec<usize> = (0..s.trials).filter(|&t| finished[t].is_none()).collect();
     let steps = experiment.steps();
+    if recorded.is_some() {
+        reporter.message(&format!(
+            "resuming {}: {} of {} trial(s) recorded, running {:?}",
+            run_dir.path().display(),
+            s.trials - todo.len(),
+            s.trials,
+            todo
+        ));
+    }
     reporter.message(&format!(
         "{}: {} trial(s) of {} steps on {} samples ({} features), replay {}, context {}, {} job(s)",
         s.scenario,
-        s.trials,
+        todo.len(),
         steps,
         features.len(),
         features.dim,
@@ -230,9 +420,9 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             "off"
         },
-        jobs.min(s.trials),
+        jobs.min(todo.len()).max(1),
     ));
-    let total_steps = (steps * s.trials) as u64;
+    let total_steps = (steps * todo.len()) as u64;
     let task = reporter.bar("train", total_steps);
     let done = AtomicU64::new(0);
     let on_step = |p: StepProgress| {
@@ -240,22 +430,24 @@ pub fn run(args: Args) -> Result<()> {
         task.update(&p.label, n.min(total_steps), total_steps);
         reporter.event(&serde_json::json!({ "event": "step", "progress": p }));
     };
-    let trials = experiment.run_with(jobs, &on_step, &|t, gdm, record| {
-        let model = out.join(run_dir::model_file(t));
-        gdm.save(&model)
-            .map_err(|e| lgdm_gdm::experiment::ExperimentError::Checkpoint {
-                path: model.display().to_string(),
-                source: e,
-            })?;
-        Ok(record)
-    })?;
+    let mut new = experiment
+        .run_with(&todo, jobs, &on_step, &|t, gdm, record| {
+            run_dir.save_trial(t, &gdm, &record)?;
+            Ok(record)
+        })?
+        .into_iter();
     task.finish();
+    let trials = finished
+        .into_iter()
+        .map(|r| r.or_else(|| new.next()).expect("one record per trial"))
+        .collect();
 
-    let metrics = experiment.metrics(trials, args.encoder.name(), &dataset);
-    Run::write_files(&out, &run_config, &metrics)?;
-    crate::plot::write_run_plots(&out, &metrics).context("drawing the plots")?;
+    let metrics = experiment.metrics(trials, plan.encoder.name(), &dataset);
+    run_dir.write_metrics(&metrics)?;
+    let out = run_dir.path();
+    crate::plot::write_run_plots(out, &metrics).context("drawing the plots")?;
     let table_text = report::summary_table(&metrics);
-    run_dir::write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
+    lgdm_gdm::experiment::run_dir::write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
     println!("{table_text}");
     println!("run directory: {}", out.display());
     Ok(())

@@ -39,6 +39,12 @@ pub use with_ae::{PIPELINE, features, resolve_checkpoint};
 #[cfg(not(feature = "ae"))]
 pub const PIPELINE: &str = "";
 
+/// The autoencoder's feature dimension (`lgdm_pybridge::ae::FEATURE_DIM`).
+#[cfg(not(feature = "ae"))]
+pub const FEATURE_DIM: usize = 256;
+#[cfg(feature = "ae")]
+pub use lgdm_pybridge::ae::FEATURE_DIM;
+
 #[cfg(feature = "ae")]
 mod with_ae {
     use super::*;

@@ -37,6 +37,7 @@
 //!     features: &x, dim: 2, collection: &collection, category: &category,
 //!     instance: &instance, sequence: &sequence, frame: &frame,
 //!     train_collections: &[0, 1, 2], test_collections: &[3], category_names: &names,
+//!     instance_names: &[],
 //! };
 //! let mut settings = Settings::new(Scenario::Ni);
 //! settings.trials = 2;
@@ -150,6 +151,8 @@ pub struct Table<'a> {
     pub test_collections: &'a [u32],
     /// Category names by id (step labels, `metrics.json`).
     pub category_names: &'a [String],
+    /// Instance names by id (`metrics.json`); may be empty.
+    pub instance_names: &'a [String],
 }
 
 impl Table<'_> {
@@ -464,12 +467,15 @@ impl<'a> Experiment<'a> {
         )
     }
 
-    /// Runs every trial, up to `jobs` at a time in parallel threads (rayon), and hands each
-    /// finished trial to `finish` (e.g. to save its model) as soon as it ends; the results come
-    /// back in trial order. Trials are independent and seeded by trial, so the results do not
-    /// depend on `jobs`. `progress` is called from the worker threads.
+    /// Runs the trials `trials` (indices below `settings.trials`), up to `jobs` at a time in
+    /// parallel threads (rayon), and hands each finished trial to `finish` (e.g. to save its
+    /// model) as soon as it ends; the results come back in the order of `trials`. Trials are
+    /// independent and seeded by index, so the results depend neither on `jobs` nor on which
+    /// other trials run (a resumed run equals an uninterrupted one). `progress` is called from
+    /// the worker threads.
     pub fn run_with<T: Send>(
         &self,
+        trials: &[usize],
         jobs: usize,
         progress: &(dyn Fn(StepProgress) + Sync),
         finish: &(dyn Fn(usize, Gdm, TrialRecord) -> Result<T, ExperimentError> + Sync),
@@ -477,19 +483,25 @@ impl<'a> Experiment<'a> {
         if jobs == 0 {
             return Err(ExperimentError::Settings("jobs must be at least 1".into()));
         }
-        let one = |t: usize| {
+        if let Some(&t) = trials.iter().find(|&&t| t >= self.settings.trials) {
+            return Err(ExperimentError::Settings(format!(
+                "trial {t} does not exist (the experiment has {} trials)",
+                self.settings.trials
+            )));
+        }
+        let one = |&t: &usize| {
             let (gdm, record) = self.run_trial(t, progress)?;
             finish(t, gdm, record)
         };
-        let jobs = jobs.min(self.settings.trials);
+        let jobs = jobs.min(trials.len()).max(1);
         if jobs == 1 {
-            return (0..self.settings.trials).map(one).collect();
+            return trials.iter().map(one).collect();
         }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(jobs)
             .build()
             .map_err(|e| ExperimentError::Settings(format!("starting {jobs} threads: {e}")))?;
-        pool.install(|| (0..self.settings.trials).into_par_iter().map(one).collect())
+        pool.install(|| trials.par_iter().map(one).collect())
     }
 
     /// Runs every trial (see [`Experiment::run_with`]); the models and records in trial order.
@@ -498,7 +510,8 @@ impl<'a> Experiment<'a> {
         jobs: usize,
         progress: &(dyn Fn(StepProgress) + Sync),
     ) -> Result<Vec<(Gdm, TrialRecord)>, ExperimentError> {
-        self.run_with(jobs, progress, &|_, gdm, record| Ok((gdm, record)))
+        let all: Vec<usize> = (0..self.settings.trials).collect();
+        self.run_with(&all, jobs, progress, &|_, gdm, record| Ok((gdm, record)))
     }
 
     /// The run's `metrics.json` contents from its trial records.
@@ -513,6 +526,7 @@ impl<'a> Experiment<'a> {
             context: self.settings.config.episodic.context_depth > 0,
             epochs: self.settings.epochs,
             categories: self.table.category_names.to_vec(),
+            instances: self.table.instance_names.to_vec(),
             summary: Summary::of(&trials),
             trials,
         }

@@ -204,6 +204,10 @@ pub struct RunMetrics {
     pub epochs: usize,
     /// Category names by id.
     pub categories: Vec<String>,
+    /// Instance names by id (empty when the data gave none); with `categories`, what
+    /// `lgdm eval` checks a dataset against before scoring a model of this run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub instances: Vec<String>,
     /// Every trial.
     pub trials: Vec<TrialRecord>,
     /// Averages over trials.

@@ -1,9 +1,16 @@
 //! The run-directory format, and the merge of single-trial runs of one experiment.
 //!
 //! A run directory holds `config.toml` ([`RunConfig`]: the exact settings and
-//! hyperparameters), `metrics.json` ([`RunMetrics`], format [`METRICS_FORMAT_VERSION`]) and one
-//! checkpoint per trial, `model-trial<t>.lgdm` ([`model_file`]). Front ends add their own
-//! renderings (`lgdm train` writes `summary.txt` and plots beside them).
+//! hyperparameters, written first), one checkpoint per trial, `model-trial<t>.lgdm`
+//! ([`model_file`]) and its record `trials/trial-<t>.json` ([`trial_file`]), each written the
+//! moment the trial ends (model first), and at the end `metrics.json` ([`RunMetrics`], format
+//! [`METRICS_FORMAT_VERSION`]). Front ends add their own renderings (`lgdm train` writes
+//! `summary.txt` and plots beside them). Every file is written atomically.
+//!
+//! A [`RunDir`] owns its directory: it is created fresh (or an old run in it is removed first,
+//! when asked), and a lock file keeps a second process out while one writes. A run stopped part
+//! way (killed, out of power) keeps its finished trials; [`RunDir::resume`] reopens it and
+//! [`RunDir::finished_trials`] says which trials are left.
 //!
 //! Trial t of an experiment with base seed S uses seed S + t, so a 5-trial experiment can run as
 //! five single-trial runs and be [`merge`]d: runs merge only when they are one experiment
@@ -24,6 +31,16 @@ pub const CONFIG_FILE: &str = "config.toml";
 /// The metrics file of a run.
 pub const METRICS_FILE: &str = "metrics.json";
 
+/// The lock file that keeps two processes out of one run directory.
+pub const LOCK_FILE: &str = ".lgdm.lock";
+/// The folder of per-trial records.
+pub const TRIALS_DIR: &str = "trials";
+
+/// The record of trial `t`, under [`TRIALS_DIR`].
+pub fn trial_file(trial: usize) -> String {
+    format!("trial-{trial}.json")
+}
+
 /// The checkpoint file of trial `t` in a run directory.
 pub fn model_file(trial: usize) -> String {
     format!("model-trial{trial}.lgdm")
@@ -31,6 +48,7 @@ pub fn model_file(trial: usize) -> String {
 
 /// The settings of a run, as written to `config.toml`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct RunConfig {
     /// Scenario name.
     pub scenario: Scenario,
@@ -109,6 +127,27 @@ impl RunConfig {
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).expect("a run config serialises to TOML")
     }
+
+    /// Parses `config.toml` text; an error names the offending key and line.
+    pub fn from_toml(text: &str) -> Result<RunConfig, String> {
+        toml::from_str(text).map_err(|e| e.to_string())
+    }
+
+    /// The experiment settings this run used.
+    pub fn settings(&self) -> super::Settings {
+        super::Settings {
+            scenario: self.scenario,
+            config: self.gdm.clone(),
+            trials: self.trials,
+            seed: self.seed,
+            replay: self.replay,
+            epochs: self.epochs,
+            eval_every: Some(self.eval_every),
+            eval_samples: self.eval_samples,
+            train_samples: self.train_samples,
+            validate: self.validate,
+        }
+    }
 }
 
 impl RunMetrics {
@@ -147,10 +186,16 @@ impl Run {
     pub fn read(dir: &Path) -> Result<Run, ExperimentError> {
         let mpath = dir.join(METRICS_FILE);
         let text = std::fs::read_to_string(&mpath).map_err(|e| {
-            run_dir_error(
-                &mpath,
-                format!("{e} (is {} a finished run?)", dir.display()),
-            )
+            let hint = if dir.join(CONFIG_FILE).is_file() {
+                format!(
+                    "{} is an unfinished run: `lgdm train --resume {}` finishes it",
+                    dir.display(),
+                    dir.display()
+                )
+            } else {
+                format!("is {} a finished run?", dir.display())
+            };
+            run_dir_error(&mpath, format!("{e} ({hint})"))
         })?;
         let metrics: RunMetrics =
             serde_json::from_str(&text).map_err(|e| run_dir_error(&mpath, e))?;
@@ -165,7 +210,7 @@ impl Run {
         }
         let cpath = dir.join(CONFIG_FILE);
         let text = std::fs::read_to_string(&cpath).map_err(|e| run_dir_error(&cpath, e))?;
-        let config: RunConfig = toml::from_str(&text).map_err(|e| run_dir_error(&cpath, e))?;
+        let config = RunConfig::from_toml(&text).map_err(|e| run_dir_error(&cpath, e))?;
         Ok(Run {
             dir: dir.to_path_buf(),
             metrics,
@@ -181,6 +226,167 @@ impl Run {
     ) -> Result<(), ExperimentError> {
         write_atomic(&dir.join(CONFIG_FILE), config.to_toml().as_bytes())?;
         write_atomic(&dir.join(METRICS_FILE), metrics.to_json().as_bytes())
+    }
+}
+
+/// Whether `name` is a file or folder a run directory holds (what `--force` may remove).
+fn is_run_entry(name: &str) -> bool {
+    matches!(
+        name,
+        CONFIG_FILE | METRICS_FILE | LOCK_FILE | TRIALS_DIR | "summary.txt" | "eval"
+    ) || name.ends_with(".png")
+        || (name.starts_with("model-trial") && name.ends_with(".lgdm"))
+        || (name.starts_with('.') && name.ends_with(".tmp"))
+}
+
+/// A run directory owned by this process: locked against other writers while it lives.
+#[derive(Debug)]
+pub struct RunDir {
+    dir: PathBuf,
+    /// Holds the lock (released when the process ends, however it ends).
+    _lock: std::fs::File,
+}
+
+impl RunDir {
+    fn lock(dir: &Path) -> Result<RunDir, ExperimentError> {
+        std::fs::create_dir_all(dir).map_err(|e| run_dir_error(dir, e))?;
+        let path = dir.join(LOCK_FILE);
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| run_dir_error(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(RunDir {
+                dir: dir.to_path_buf(),
+                _lock: file,
+            }),
+            Err(std::fs::TryLockError::WouldBlock) => Err(run_dir_error(
+                dir,
+                "another lgdm process is writing this run directory",
+            )),
+            Err(std::fs::TryLockError::Error(e)) => Err(run_dir_error(&path, e)),
+        }
+    }
+
+    /// Creates `dir` as a fresh run directory and locks it. A directory that already holds
+    /// files is refused, unless `force` is set and every file in it belongs to a run (those are
+    /// removed first); a directory holding anything else is never cleared.
+    pub fn create(dir: &Path, force: bool) -> Result<RunDir, ExperimentError> {
+        let run = RunDir::lock(dir)?;
+        let entries = std::fs::read_dir(dir).map_err(|e| run_dir_error(dir, e))?;
+        let mut old = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(|e| run_dir_error(dir, e))?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name == LOCK_FILE {
+                continue;
+            }
+            if !is_run_entry(&name) {
+                return Err(run_dir_error(
+                    dir,
+                    format!(
+                        "holds {name}, which is not part of an lgdm run; choose another directory"
+                    ),
+                ));
+            }
+            old.push(entry.path());
+        }
+        if !old.is_empty() {
+            if !force {
+                return Err(run_dir_error(
+                    dir,
+                    "holds another run; choose another directory, pass --force to replace it, \
+                     or --resume to finish it",
+                ));
+            }
+            old.sort();
+            for path in old {
+                let removed = if path.is_dir() {
+                    std::fs::remove_dir_all(&path)
+                } else {
+                    std::fs::remove_file(&path)
+                };
+                removed.map_err(|e| run_dir_error(&path, e))?;
+            }
+        }
+        Ok(run)
+    }
+
+    /// Reopens a run directory to finish it: locks it and reads its `config.toml`.
+    pub fn resume(dir: &Path) -> Result<(RunDir, RunConfig), ExperimentError> {
+        let cpath = dir.join(CONFIG_FILE);
+        if !cpath.is_file() {
+            return Err(run_dir_error(
+                dir,
+                "is not a run directory (no config.toml): nothing to resume",
+            ));
+        }
+        let run = RunDir::lock(dir)?;
+        let text = std::fs::read_to_string(&cpath).map_err(|e| run_dir_error(&cpath, e))?;
+        let config = RunConfig::from_toml(&text).map_err(|e| run_dir_error(&cpath, e))?;
+        Ok((run, config))
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Writes `config.toml`.
+    pub fn write_config(&self, config: &RunConfig) -> Result<(), ExperimentError> {
+        write_atomic(&self.dir.join(CONFIG_FILE), config.to_toml().as_bytes())
+    }
+
+    /// Records a finished trial: its model, then its record (so a record always has its model).
+    pub fn save_trial(
+        &self,
+        trial: usize,
+        gdm: &crate::Gdm,
+        record: &TrialRecord,
+    ) -> Result<(), ExperimentError> {
+        let model = self.dir.join(model_file(trial));
+        gdm.save(&model)
+            .map_err(|source| ExperimentError::Checkpoint {
+                path: model.display().to_string(),
+                source,
+            })?;
+        let dir = self.dir.join(TRIALS_DIR);
+        std::fs::create_dir_all(&dir).map_err(|e| run_dir_error(&dir, e))?;
+        let json = serde_json::to_string_pretty(record).expect("a trial record serialises");
+        write_atomic(&dir.join(trial_file(trial)), json.as_bytes())
+    }
+
+    /// The records of trials `0..trials` that finished (record and model present), `None` for
+    /// the others. A record whose trial index or model does not match is an error.
+    pub fn finished_trials(
+        &self,
+        trials: usize,
+    ) -> Result<Vec<Option<TrialRecord>>, ExperimentError> {
+        (0..trials)
+            .map(|t| {
+                let path = self.dir.join(TRIALS_DIR).join(trial_file(t));
+                if !path.is_file() || !self.dir.join(model_file(t)).is_file() {
+                    return Ok(None);
+                }
+                let text = std::fs::read_to_string(&path).map_err(|e| run_dir_error(&path, e))?;
+                let record: TrialRecord =
+                    serde_json::from_str(&text).map_err(|e| run_dir_error(&path, e))?;
+                if record.trial != t {
+                    return Err(run_dir_error(
+                        &path,
+                        format!("records trial {}, expected {t}", record.trial),
+                    ));
+                }
+                Ok(Some(record))
+            })
+            .collect()
+    }
+
+    /// Writes `metrics.json` (the run is finished).
+    pub fn write_metrics(&self, metrics: &RunMetrics) -> Result<(), ExperimentError> {
+        write_atomic(&self.dir.join(METRICS_FILE), metrics.to_json().as_bytes())
     }
 }
 
@@ -234,25 +440,29 @@ pub struct Merged {
 }
 
 impl Merged {
-    /// Writes the merged run into `out` (created if needed): `config.toml`, `metrics.json` and
-    /// each trial's model, hard-linked (copied where links fail) under its new trial index.
-    /// Returns how many source models were missing (not linked).
-    pub fn write(&self, out: &Path) -> Result<usize, ExperimentError> {
-        std::fs::create_dir_all(out).map_err(|e| run_dir_error(out, e))?;
-        Run::write_files(out, &self.config, &self.metrics)?;
+    /// Writes the merged run into the run directory `out` (see [`RunDir::create`]):
+    /// `config.toml`, each trial's model, hard-linked (copied where links fail) under its new
+    /// trial index, with its record, and `metrics.json`. Returns how many source models were
+    /// missing (not linked). A source run may not be `out` itself.
+    pub fn write(&self, out: &RunDir) -> Result<usize, ExperimentError> {
+        out.write_config(&self.config)?;
         let mut missing = 0;
-        for (src, t) in &self.models {
-            let dst = out.join(model_file(*t));
+        for ((src, t), record) in self.models.iter().zip(&self.metrics.trials) {
+            let dst = out.path().join(model_file(*t));
             if !src.exists() {
                 missing += 1;
                 continue;
             }
-            let _ = std::fs::remove_file(&dst);
             if std::fs::hard_link(src, &dst).is_err() {
                 std::fs::copy(src, &dst)
                     .map_err(|e| run_dir_error(&dst, format!("copying {}: {e}", src.display())))?;
             }
+            let dir = out.path().join(TRIALS_DIR);
+            std::fs::create_dir_all(&dir).map_err(|e| run_dir_error(&dir, e))?;
+            let json = serde_json::to_string_pretty(record).expect("a trial record serialises");
+            write_atomic(&dir.join(trial_file(*t)), json.as_bytes())?;
         }
+        out.write_metrics(&self.metrics)?;
         Ok(missing)
     }
 }
@@ -363,6 +573,7 @@ mod tests {
             context: true,
             epochs: 1,
             categories: vec!["mug".into()],
+            instances: vec![],
             trials,
             summary,
         };

@@ -123,6 +123,7 @@ def run_scenario(
         test,
         [str(c) for c in categories],
         scenario,
+        instances=[str(i) for i in table.get("instances", [])],
         config=config,
         trials=trials,
         seed=seed,

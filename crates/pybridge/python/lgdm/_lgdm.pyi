@@ -26,7 +26,13 @@ class Model:
     """The native Growing Dual-Memory model. Use ``lgdm.GDM``; this class is its engine.
 
     Arrays must already be C-contiguous: features float32 (n, d), labels and sequence ids
-    int64 (n,), with -1 for "no label"."""
+    int64 (n,), with -1 for "no label".
+
+    Thread-safe: the model sits behind a read-write lock taken with the GIL released. Calls that
+    change it (``train``, ``end_episode``, ``replay``) run one at a time, each whole; calls that
+    read it run in parallel with each other. A bug (Rust panic) inside a call raises
+    ``InternalError`` (an ``lgdm.LgdmError``); after one inside a call that changes the model,
+    the model refuses every call with that error."""
 
     def __init__(self, config: str, dim: int) -> None: ...
     @staticmethod
@@ -69,7 +75,8 @@ class Model:
         end_episodes: bool = False,
     ) -> dict[str, float]:
         """``epochs`` passes (ending an episode after each if ``end_episodes``); returns the
-        last pass's statistics."""
+        last pass's statistics. Calls from other threads come before or after, never between
+        the passes."""
     def predict(
         self,
         x: npt.NDArray[np.float32],
@@ -95,6 +102,9 @@ class Model:
         """Ends an episode (isolated-node removal)."""
     def replay(self) -> dict[str, int]:
         """Intrinsic replay; ``{"chains": ..., "samples": ...}``."""
+    def _panic_for_tests(self) -> None:
+        """Test hook: panics inside the model's exclusive lock, as a bug would. Raises
+        ``InternalError`` (an ``lgdm.LgdmError``); the model then refuses every call."""
     def _bench_predict(self, x: npt.NDArray[np.float32], repeats: int = 1) -> list[float]:
         """Seconds of each of ``repeats`` native predict calls (conversion not timed)."""
     def _bench_train(
@@ -175,6 +185,7 @@ def run_scenario(
     categories: list[str],
     scenario_name: str,
     *,
+    instances: list[str] = ...,
     config: str | None = None,
     trials: int | None = None,
     seed: int = 0,
@@ -199,8 +210,10 @@ def generate_dataset(
     frames: int | None = None,
     grasp_images: int | None = None,
     meshes: str | None = None,
+    units: list[str] | None = None,
 ) -> Dataset:
-    """Generates a dataset as ``lgdm gen-dataset`` does and opens it."""
+    """Generates a dataset as ``lgdm gen-dataset`` does and opens it; ``units`` are
+    ``--units`` entries (``"mm"``, ``"<category>/<file>=cm"``)."""
 
 def project_to_image(
     points: npt.NDArray[np.float32],
