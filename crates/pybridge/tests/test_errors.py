@@ -177,3 +177,16 @@ def test_checkpoint_errors(fitted, tmp_path):
     with pytest.raises(lgdm.CheckpointError, match="I/O"):
         fitted.save(tmp_path / "no" / "such" / "dir" / "m.lgdm")
     assert not list(tmp_path.iterdir())
+
+
+def test_sizes_that_would_abort_are_config_errors():
+    """`GDM(replay__chain_length=2**62).replay()` used to abort with a capacity overflow; sizes
+    past their bound are refused when the model is configured, naming the field."""
+    for key, value, field in [
+        ("replay__chain_length", 2**62, "replay.chain_length"),
+        ("replay__chain_length", 1_000_000_000, "replay.chain_length"),
+        ("episodic__max_nodes", 2**40, "episodic.max_nodes"),
+    ]:
+        with pytest.raises(lgdm.ConfigError) as info:
+            lgdm.GDM(**{key: value})
+        assert info.value.field == field, (key, value)
