@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 
 #[path = "common/mod.rs"]
 mod common;
-use common::{check, lgdm};
+use common::{check, lgdm, without_times};
 
 fn work_dir() -> PathBuf {
     common::work_dir("e2e")
@@ -72,25 +72,6 @@ fn train(scenario: &str, out: &Path, extra: &[&str]) -> Value {
     );
     let text = std::fs::read_to_string(out.join("metrics.json")).expect("metrics.json written");
     serde_json::from_str(&text).expect("metrics.json parses")
-}
-
-/// metrics.json without the wall-clock fields, which differ from run to run.
-fn without_times(v: &Value) -> Value {
-    match v {
-        Value::Object(m) => Value::Object(
-            m.iter()
-                .filter(|(k, _)| {
-                    !matches!(
-                        k.as_str(),
-                        "seconds" | "train_seconds" | "inference_ms_per_sample" | "dataset"
-                    )
-                })
-                .map(|(k, v)| (k.clone(), without_times(v)))
-                .collect(),
-        ),
-        Value::Array(a) => Value::Array(a.iter().map(without_times).collect()),
-        other => other.clone(),
-    }
 }
 
 /// Path and values of the first difference between two JSON values, if any.

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 #[path = "common/mod.rs"]
 mod common;
-use common::{check, lgdm};
+use common::{check, lgdm, without_times};
 
 fn work_dir() -> PathBuf {
     common::work_dir("run-dirs")
@@ -69,25 +69,6 @@ fn read(path: &Path) -> Vec<u8> {
 
 fn metrics(dir: &Path) -> Value {
     serde_json::from_slice(&read(&dir.join("metrics.json"))).unwrap()
-}
-
-/// metrics.json without the wall-clock fields and the dataset path.
-fn without_times(v: &Value) -> Value {
-    match v {
-        Value::Object(m) => Value::Object(
-            m.iter()
-                .filter(|(k, _)| {
-                    !matches!(
-                        k.as_str(),
-                        "seconds" | "train_seconds" | "inference_ms_per_sample"
-                    )
-                })
-                .map(|(k, v)| (k.clone(), without_times(v)))
-                .collect(),
-        ),
-        Value::Array(a) => Value::Array(a.iter().map(without_times).collect()),
-        other => other.clone(),
-    }
 }
 
 #[test]

@@ -31,3 +31,24 @@ pub fn check(out: Output, what: &str) -> Output {
     );
     out
 }
+
+/// metrics.json without what differs between two runs of one experiment: the wall-clock fields
+/// and the dataset path.
+pub fn without_times(v: &serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Object(m) => Value::Object(
+            m.iter()
+                .filter(|(k, _)| {
+                    !matches!(
+                        k.as_str(),
+                        "seconds" | "train_seconds" | "inference_ms_per_sample" | "dataset"
+                    )
+                })
+                .map(|(k, v)| (k.clone(), without_times(v)))
+                .collect(),
+        ),
+        Value::Array(a) => Value::Array(a.iter().map(without_times).collect()),
+        other => other.clone(),
+    }
+}
