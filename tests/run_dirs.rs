@@ -569,3 +569,51 @@ fn two_generations_into_one_directory_do_not_mix() {
     assert_eq!(seed, winner);
     assert!(!out.join(lgdm_pointcloud::LOCK_FILE).exists());
 }
+
+#[test]
+fn a_killed_generation_leaves_nothing_a_rerun_trips_on() {
+    let out = work_dir().join("gen-killed");
+    // What a generation killed part way leaves: its lock file (no longer held), a finished
+    // collection, a temporary file, no manifest.
+    std::fs::create_dir_all(out.join("collections")).unwrap();
+    std::fs::write(out.join(lgdm_pointcloud::LOCK_FILE), b"").unwrap();
+    std::fs::write(out.join("collections/c00_clean.mcap"), vec![0u8; 64]).unwrap();
+    let temp = out.join("collections/.c01_translation.mcap.a1b2c3.tmp");
+    std::fs::write(&temp, vec![0u8; 64]).unwrap();
+    check(
+        lgdm(&cache())
+            .args([
+                "gen-dataset",
+                "--preset",
+                "small",
+                "--frames",
+                "2",
+                "--seed",
+                "5",
+            ])
+            .args(["--progress", "none", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap(),
+        "gen-dataset over an interrupted generation",
+    );
+    assert!(out.join("manifest.json").is_file());
+    assert!(
+        !temp.exists(),
+        "the killed run's temporary file is still there"
+    );
+    assert!(!out.join(lgdm_pointcloud::LOCK_FILE).exists());
+    // A directory of other files is still refused.
+    let other = work_dir().join("gen-other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "mine").unwrap();
+    let err = refused(
+        lgdm(&cache())
+            .args(["gen-dataset", "--preset", "small", "--frames", "2"])
+            .args(["--progress", "none", "--out"])
+            .arg(&other)
+            .output()
+            .unwrap(),
+    );
+    assert!(err.contains("not empty"), "{err}");
+}

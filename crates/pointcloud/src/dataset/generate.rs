@@ -76,8 +76,9 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
     Ok((objects, categories, instances))
 }
 
-/// Checks that `out` can receive a dataset: it does not exist, is empty, or already holds an
-/// lgdm dataset (`manifest.json`) to be replaced. Anything else is refused, so generating never
+/// Checks that `out` can receive a dataset: it does not exist, is empty, already holds an
+/// lgdm dataset (`manifest.json`) to be replaced, or holds what an interrupted generation left
+/// (its lock file, no manifest). Anything else is refused, so generating never
 /// mixes a dataset into unrelated files.
 pub fn check_output_dir(out: &Path) -> Result<(), DatasetError> {
     if crate::DirLock::is_held(out) {
@@ -94,7 +95,10 @@ pub fn check_output_dir(out: &Path) -> Result<(), DatasetError> {
 
 /// The contents part of [`check_output_dir`] (for the writer that holds the lock).
 fn check_contents(out: &Path) -> Result<(), DatasetError> {
-    if out.is_dir() && !out.join(super::MANIFEST_FILE).is_file() {
+    // A lock file without a manifest: an lgdm generation into this directory was stopped part
+    // way (killed); a new generation may take its place.
+    let interrupted = out.join(crate::LOCK_FILE).is_file();
+    if out.is_dir() && !out.join(super::MANIFEST_FILE).is_file() && !interrupted {
         let mut entries = std::fs::read_dir(out).map_err(|e| DatasetError::io(out, e))?;
         let non_empty = entries.any(|e| e.map_or(true, |e| e.file_name() != crate::LOCK_FILE));
         if non_empty {
@@ -108,6 +112,23 @@ fn check_contents(out: &Path) -> Result<(), DatasetError> {
         }
     }
     Ok(())
+}
+
+/// Removes the temporary files (`.<name>.<random>.tmp`) a killed generation left in `dir` and
+/// its sub-folders, so they do not pile up.
+fn remove_temp_files(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if path.is_dir() {
+            remove_temp_files(&path);
+        } else if name.starts_with('.') && name.ends_with(".tmp") {
+            std::fs::remove_file(&path).ok();
+        }
+    }
 }
 
 /// Generates the dataset `spec` describes into `out_dir` (created if needed) and returns its
@@ -148,6 +169,7 @@ pub fn generate(
             )
         })?;
     check_contents(out_dir)?;
+    remove_temp_files(out_dir);
     let written = (|| -> Result<Manifest, DatasetError> {
         let collections_dir = out_dir.join("collections");
         std::fs::create_dir_all(&collections_dir)
