@@ -41,7 +41,8 @@ step "python: lint, tests"
 step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into the venv on first use)"
 "$venv/bin/python" -m pip install -q -e python/train_ae
 "$venv/bin/ruff" check python/train_ae
-"$venv/bin/python" -m pytest -q python/train_ae/tests
+# test_ceiling.py generates grasp images with the release binary built above.
+LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q python/train_ae/tests
 
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --lib --test ae_bridge

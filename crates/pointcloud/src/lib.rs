@@ -6,6 +6,8 @@
 //! [`dataset`] (MCAP collections in the `foxglove.PointCloud` schema + `manifest.json`) →
 //! [`features`] (GOOD, written as `.npz`). [`grasp`] labels grasps from geometry, writes
 //! grasp-labelled RGB-D images in the Cornell layout and decodes the grasp network's maps;
+//! [`segment`] finds the table and the objects on it in an RGB-D frame and [`crop`] cuts the
+//! grasp network's object-centred, fixed-scale input around one;
 //! [`projection`] makes 224×224 images of clouds; [`cache`] holds the embedded default
 //! dataset and cached feature tables. Every file is written atomically (temp file,
 //! then rename); parallel work runs on rayon's pool and never changes the bytes written.
@@ -25,6 +27,7 @@
 pub mod augment;
 pub mod cache;
 pub mod cloud;
+pub mod crop;
 pub mod dataset;
 pub mod features;
 pub(crate) mod fsutil;
@@ -41,6 +44,7 @@ pub mod preview;
 pub mod progress;
 pub mod projection;
 pub mod render;
+pub mod segment;
 
 pub use cloud::PointCloud;
 pub use progress::Progress;

@@ -272,6 +272,63 @@ pub fn depth_from_cloud(cloud: &PointCloud, intrinsics: &Intrinsics) -> Vec<f32>
     depth
 }
 
+/// Label [`splat_cloud`] gives the pixels it draws.
+pub const CLOUD_LABEL: u8 = 3;
+
+/// Colour of splatted points of a cloud without colours.
+pub const CLOUD_GREY: [u8; 3] = [128, 128, 128];
+
+/// Draws a cloud (optical frame) into a frame taken with `intrinsics`: each point covers the
+/// `(2r + 1)²` pixels around its projection where it is nearer than what is there (z-buffer),
+/// with its colour (grey without colours) and [`CLOUD_LABEL`]. `radius_px` `None` chooses
+/// `r` from the density: half the mean spacing of the points over their projected box,
+/// rounded up, at most 4.
+pub fn splat_cloud(
+    frame: &mut RgbdFrame,
+    intrinsics: &Intrinsics,
+    cloud: &PointCloud,
+    radius_px: Option<usize>,
+) {
+    let (w, h) = (frame.width as i64, frame.height as i64);
+    let projected: Vec<(usize, [f32; 2])> = cloud
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.iter().all(|v| v.is_finite()))
+        .filter_map(|(i, &p)| intrinsics.project(p).map(|uv| (i, uv)))
+        .filter(|(_, [u, v])| u.is_finite() && v.is_finite())
+        .collect();
+    if projected.is_empty() {
+        return;
+    }
+    let r = radius_px.unwrap_or_else(|| {
+        let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+        for (_, [u, v]) in &projected {
+            lo = [lo[0].min(*u), lo[1].min(*v)];
+            hi = [hi[0].max(*u), hi[1].max(*v)];
+        }
+        let area = (hi[0] - lo[0] + 1.0) * (hi[1] - lo[1] + 1.0);
+        let spacing = (area / projected.len() as f32).sqrt();
+        ((spacing / 2.0).ceil() as usize).min(4)
+    }) as i64;
+    for (i, [u, v]) in projected {
+        let z = cloud.points[i][2];
+        let colour = cloud.colors.as_ref().map_or(CLOUD_GREY, |c| c[i]);
+        let (x, y) = (u.round() as i64, v.round() as i64);
+        for yy in (y - r).max(0)..=(y + r).min(h - 1) {
+            for xx in (x - r).max(0)..=(x + r).min(w - 1) {
+                let j = (yy * w + xx) as usize;
+                let d = frame.depth_m[j];
+                if d.is_nan() || d <= 0.0 || z < d {
+                    frame.depth_m[j] = z;
+                    frame.rgb[j] = colour;
+                    frame.label[j] = CLOUD_LABEL;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

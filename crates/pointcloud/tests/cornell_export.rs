@@ -1,12 +1,17 @@
 //! The Cornell export re-reads to the same rectangles; images have the Cornell layout (RGB PNG,
 //! float32 depth TIFF in metres); positives are antipodal grasps within the gripper's opening.
+//! By default the images are the object-centred crops (224 px, 0.22 m) with every rectangle's
+//! jaw the finger width; `grasp_crop: None` writes whole frames with the labels as computed.
 
+use lgdm_pointcloud::crop::crop_largest_object;
 use lgdm_pointcloud::dataset::{DatasetSpec, generate, load_objects, standard_collections};
 use lgdm_pointcloud::grasp::cornell::{
-    CornellError, GraspImageInfo, cornell_prefix, grasp_scene, read_rectangles, write_rectangles,
+    CornellError, GraspIndex, INDEX_FORMAT, cornell_prefix, grasp_scene, read_rectangles,
+    rectangles_in_crop, write_rectangles,
 };
 use lgdm_pointcloud::grasp::{GraspRectangle, GraspVerdict};
 use lgdm_pointcloud::image::{RgbImage, read_depth_tiff};
+use lgdm_pointcloud::segment::SegmentParams;
 
 fn spec() -> DatasetSpec {
     let mut spec = DatasetSpec::small(3);
@@ -19,15 +24,77 @@ fn spec() -> DatasetSpec {
 }
 
 #[test]
-fn export_rereads_to_the_same_rectangles() {
+fn crops_reread_to_the_labels_in_crop_pixels_with_the_finger_width_jaw() {
     let dir = tempfile::tempdir().unwrap();
     let spec = spec();
+    let crop = spec.grasp_crop.expect("crops by default");
+    let manifest = generate(&spec, dir.path(), &mut |_| {}).unwrap();
+    let grasp = manifest.grasp.as_ref().unwrap();
+    let index: GraspIndex =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(&grasp.index)).unwrap())
+            .unwrap();
+    assert_eq!(index.format, INDEX_FORMAT);
+    assert_eq!(index.crop, Some(crop));
+    let jaw_px = index.jaw_side_fraction.unwrap() * crop.size_px as f32;
+    assert!((jaw_px - 0.02 / 0.22 * 224.0).abs() < 1e-3);
+    let (objects, _, _) = load_objects(&spec).unwrap();
+    let root = dir.path().join(&grasp.dir);
+    let mut total_positives = 0;
+    for (k, info) in index.images.iter().enumerate() {
+        assert_eq!(info.category_name, spec.categories[info.category as usize]);
+        let file = |s: &str| {
+            std::path::PathBuf::from(format!(
+                "{}{s}",
+                cornell_prefix(&root, info.number).display()
+            ))
+        };
+        let scene = grasp_scene(&spec.grasp, spec.seed, k, &objects[info.instance as usize]);
+        let found = crop_largest_object(
+            &scene.frame,
+            &scene.camera.intrinsics,
+            &SegmentParams::default(),
+            &crop,
+        )
+        .unwrap();
+        assert_eq!(info.window, Some(found.crop.window));
+        let pos = read_rectangles(&file("cpos.txt")).unwrap();
+        assert_eq!(
+            pos,
+            rectangles_in_crop(&scene.positives(), &found.crop, jaw_px)
+        );
+        assert_eq!(pos.len(), info.positives);
+        for r in &pos {
+            assert!(
+                (r.height_px() - jaw_px).abs() < 1e-3,
+                "jaw {}",
+                r.height_px()
+            );
+            let [x, y] = r.center();
+            assert!((-0.5..223.5).contains(&x) && (-0.5..223.5).contains(&y));
+        }
+        total_positives += pos.len();
+        let rgb = RgbImage::read_png(&file("r.png")).unwrap();
+        assert_eq!((rgb.width, rgb.height), (224, 224));
+        let (w, h, depth) = read_depth_tiff(&file("d.tiff")).unwrap();
+        assert_eq!((w, h), (224, 224));
+        assert_eq!(depth, found.crop.depth_m);
+    }
+    assert!(total_positives >= 10, "only {total_positives} positives");
+}
+
+#[test]
+fn export_rereads_to_the_same_rectangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec = spec();
+    spec.grasp_crop = None;
     let manifest = generate(&spec, dir.path(), &mut |_| {}).unwrap();
     let grasp = manifest.grasp.as_ref().unwrap();
     assert_eq!(grasp.images, 3);
-    let index: Vec<GraspImageInfo> =
+    let index: GraspIndex =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join(&grasp.index)).unwrap())
             .unwrap();
+    assert_eq!((index.crop, index.jaw_side_fraction), (None, None));
+    let index = index.images;
     let (objects, _, _) = load_objects(&spec).unwrap();
     let root = dir.path().join(&grasp.dir);
     let mut total_positives = 0;

@@ -44,19 +44,28 @@ def test_default_checkpoint_loads_as_the_cpu_configuration():
         assert np.isfinite(m).all()
 
 
-def test_object_map_from_a_gen_dataset_index(tmp_path):
-    import json
+def test_make_default_runs_gen_dataset_then_train(tmp_path, monkeypatch, capsys):
+    """The two steps with a stand-in lgdm that writes the synthetic lgdm-layout fixture."""
+    import sys
 
-    from train_ae.data import read_object_map
-    from train_ae.make_default import write_object_map
+    from train_ae import make_default
 
-    index = tmp_path / "index.json"
-    index.write_text(json.dumps([
-        {"number": 100, "prefix": "01/pcd0100", "object": "mug_01"},
-        {"number": 101, "prefix": "01/pcd0101", "object": "mug_02"},
-        {"number": 200, "prefix": "02/pcd0200", "object": "mug_01"},
-    ]))
-    out = tmp_path / "objects.txt"
-    assert write_object_map(index, out) == 3
-    assert read_object_map(out) == {"pcd0100": "mug_01", "pcd0101": "mug_02",
-                                    "pcd0200": "mug_01"}
+    fake = tmp_path / "lgdm"
+    src = Path(__file__).resolve().parents[1] / "src"
+    fake.write_text(
+        f"#!{sys.executable}\n"
+        "import sys\n"
+        f"sys.path.insert(0, {str(src)!r})\n"
+        "from train_ae.synthetic import write_synthetic_dataset\n"
+        "out = sys.argv[sys.argv.index('--out') + 1]\n"
+        "write_synthetic_dataset(out + '/grasp', objects=4, images_per_object=2)\n")
+    fake.chmod(0o755)
+    out = tmp_path / "ckpt.pt"
+    assert make_default.main(["--lgdm", str(fake), "--work", str(tmp_path / "w"), "--out",
+                              str(out), "--epochs", "1", "--images", "8", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert (f"$ {fake} gen-dataset --preset paper --frames 1 --grasp-images 8 --seed 0 "
+            f"--out {tmp_path / 'w' / 'data'} --progress none") in err
+    assert "--holdout per-category" in err and "held out (per-category)" in err
+    _, ckpt = load_checkpoint(out)
+    assert ckpt["config"]["jaw_side_fraction"] == pytest.approx(0.02 / 0.22)

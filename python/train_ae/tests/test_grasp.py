@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from train_ae.grasp import (
+    JAW_FRACTION,
     WIDTH_SCALE_PX,
     GraspRectangle,
     angle_difference,
     decode_grasps,
     grasp_maps,
     is_correct,
+    jaw_px_for,
     polygon_iou,
     rectangle_iou,
     wilson_interval,
@@ -163,3 +165,16 @@ def test_wilson_interval_known_values():
     lo, hi = wilson_interval(0, 4)
     assert lo == 0.0 and hi == pytest.approx(1.959964**2 / (4 + 1.959964**2), abs=1e-6)
     assert wilson_interval(0, 0) == (0.0, 1.0)
+
+
+def test_decoded_jaw_is_the_given_width_or_half_the_opening():
+    gt = GraspRectangle(40, 40, deg(20), 30, 8)
+    maps = grasp_maps([gt], (80, 80))
+    (cornell,) = decode_grasps(*maps)
+    assert cornell.jaw_px == pytest.approx(cornell.width_px * JAW_FRACTION)
+    (lgdm,) = decode_grasps(*maps, jaw_px=8.0)
+    assert lgdm.jaw_px == 8.0 and lgdm.width_px == cornell.width_px
+    assert rectangle_iou(lgdm, gt) > rectangle_iou(cornell, gt)
+    assert jaw_px_for(None, 112) is None and jaw_px_for(0.25, 112) == 28.0
+    with pytest.raises(ValueError, match="jaw_px"):
+        decode_grasps(*maps, jaw_px=0.0)

@@ -169,3 +169,123 @@ def test_bridge_preprocess_matches_training_input(tmp_path):
     rgb, depth = load_images(s)
     ds = GraspDataset([s], 112, augment=False)
     np.testing.assert_allclose(bridge.preprocess(rgb, depth), ds.item(0)[0], atol=1e-6)
+
+
+def test_weighted_loss_weights_positives_in_all_four_terms():
+    torch.manual_seed(0)
+    targets = torch.zeros(2, 4, 8, 8)
+    targets[0, :, 2, 3] = torch.tensor([1.0, 0.5, -0.5, 0.2])
+    targets[1, :, 5, 5] = torch.tensor([1.0, -1.0, 0.0, 0.4])
+    maps = tuple(torch.randn(2, 8, 8) for _ in range(4))
+    paper = grasp_loss(maps, targets, "paper")
+    assert float(paper) == pytest.approx(
+        sum(float(torch.nn.functional.smooth_l1_loss(m, targets[:, i]))
+            for i, m in enumerate(maps)), rel=1e-6)
+    # pos_weight 1 is the plain mean.
+    assert float(grasp_loss(maps, targets, "weighted", 1.0)) == pytest.approx(float(paper),
+                                                                             rel=1e-6)
+    w = torch.ones(2, 8, 8)
+    w[0, 2, 3] = w[1, 5, 5] = 10.0
+    expect = sum(float((w * torch.nn.functional.smooth_l1_loss(m, targets[:, i],
+                                                                reduction="none")).sum()
+                       / w.sum()) for i, m in enumerate(maps))
+    assert float(grasp_loss(maps, targets, "weighted", 10.0)) == pytest.approx(expect, rel=1e-6)
+    assert float(grasp_loss(maps, targets)) == pytest.approx(expect, rel=1e-6)  # the default
+    # "No grasp anywhere" costs much more under the weighted loss than under the paper's.
+    zeros = tuple(torch.zeros(2, 8, 8) for _ in range(4))
+    assert float(grasp_loss(zeros, targets)) > 5 * float(grasp_loss(zeros, targets, "paper"))
+    with pytest.raises(ValueError, match="unknown loss"):
+        grasp_loss(maps, targets, "focal")
+
+
+@pytest.mark.parametrize(("optimizer", "loss"), [("rmsprop", "paper"), ("adam", "weighted")])
+def test_optimizers_and_losses_are_seeded(lgdm_dir, optimizer, loss):
+    tiny = ModelConfig(name="tiny", input_size=48, channels=8, encoder_res_blocks=1,
+                       bottleneck_res_blocks=1)
+    ds = GraspDataset(find_samples(lgdm_dir)[:4], tiny.input_size, augment=True, seed=1)
+    states = []
+    for _ in range(2):
+        torch.manual_seed(7)
+        model = GraspAutoencoder(tiny)
+        hist = train_model(model, ds, epochs=1, batch_size=2, seed=1, optimizer=optimizer,
+                           loss=loss)
+        states.append(model.state_dict())
+    assert np.isfinite(hist.epoch_loss).all()
+    for k in states[0]:
+        assert torch.equal(states[0][k], states[1][k]), k
+    with pytest.raises(ValueError, match="unknown optimizer"):
+        train_model(GraspAutoencoder(tiny), ds, 1, optimizer="sgd")
+
+
+def test_train_on_lgdm_crops_holds_out_an_instance_per_category(lgdm_dir, tmp_path, capsys):
+    out = tmp_path / "ae.pt"
+    argv = ["--data", str(lgdm_dir), "--config", "cpu", "--epochs", "1", "--out", str(out),
+            "--batch-size", "4", "--seed", "0", "--threads", "1", "--quiet"]
+    assert train_cli.main(argv) == 0
+    err = capsys.readouterr().err
+    assert "held out (per-category): 6 images of 2 objects" in err
+    assert "optimizer adam lr 0.001, loss weighted (positives x10)" in err
+    model, ckpt = load_checkpoint(out)
+    assert model.config.jaw_side_fraction == pytest.approx(0.02 / 0.22)
+    assert bridge.jaw_side_fraction(model) == pytest.approx(0.02 / 0.22)
+    t = ckpt["metrics"]["training"]
+    assert (t["optimizer"], t["loss"], t["pos_weight"], t["holdout"]) == (
+        "adam", "weighted", 10.0, "per-category")
+    held = ckpt["metrics"]["heldout"]["objects"]
+    assert sorted(o.split("_")[0] for o in held) == ["bar", "box"]
+    assert set(t["train_objects"]).isdisjoint(held)
+    # Same seed, same threads: the same bytes (but for the recorded output path).
+    out2 = tmp_path / "ae2.pt"
+    assert train_cli.main([*argv[:7], str(out2), *argv[8:]]) == 0
+    a, b = torch.load(out, weights_only=True), torch.load(out2, weights_only=True)
+    assert a["metrics"] == b["metrics"] and a["config"] == b["config"]
+    for k in a["state_dict"]:
+        assert torch.equal(a["state_dict"][k], b["state_dict"][k]), k
+    # The paper's settings and the old fraction split are still selectable.
+    assert train_cli.main([*argv, "--optimizer", "rmsprop", "--loss", "paper",
+                           "--holdout", "fraction", "--val-fraction", "0.25"]) == 0
+    assert "held out (fraction): 3 images of 1 objects" in capsys.readouterr().err
+    _, ckpt = load_checkpoint(out)
+    assert ckpt["metrics"]["training"]["pos_weight"] is None
+    assert evaluate_cli.main(["--data", str(lgdm_dir), "--ckpt", str(out), "--threads", "1",
+                              "--quiet", "--json"]) == 0
+    assert '"jaw_side_fraction": 0.09090909' in capsys.readouterr().out
+
+
+def test_per_category_needs_categories(fixture_dir, tmp_path, capsys):
+    argv = ["--data", str(fixture_dir), "--config", "cpu", "--epochs", "1", "--out",
+            str(tmp_path / "x.pt"), "--threads", "1", "--quiet", "--holdout", "per-category"]
+    assert train_cli.main(argv) == 2
+    assert "needs categories" in capsys.readouterr().err
+
+
+def test_perfect_maps_on_lgdm_crops_score_everything_with_the_finger_jaw(lgdm_dir):
+    """With jaw = finger width the label maps decode to correct grasps; the Cornell jaw
+    (opening / 2) is a different rectangle and is recorded as such."""
+    ds = GraspDataset(find_samples(lgdm_dir), 112, augment=False)
+    targets = [torch.from_numpy(ds.item(i)[1]) for i in range(len(ds))]
+
+    class Oracle(torch.nn.Module):
+        seen = 0
+
+        def forward(self, x):
+            y = torch.stack(targets[self.seen:self.seen + len(x)])
+            self.seen += len(x)
+            return tuple(y[:, k] for k in range(4))
+
+    result = evaluate_model(Oracle(), ds, batch_size=5, jaw_side_fraction=0.02 / 0.22)
+    assert result["n"] == len(ds) == result["correct"]
+
+
+def test_bridge_preprocess_resizes_crops_like_training(lgdm_dir):
+    (s, *_) = find_samples(lgdm_dir)
+    rgb, depth = load_images(s)
+    ds = GraspDataset([s], 112, augment=False)
+    x = bridge.preprocess(rgb, depth, 112)
+    assert x.shape == (4, 112, 112) and x.flags.c_contiguous and x.dtype == np.float32
+    np.testing.assert_array_equal(x, ds.item(0)[0])
+    assert bridge.preprocess(rgb, depth).shape == (4, 224, 224)  # no size: no resize
+    np.testing.assert_array_equal(bridge.preprocess(rgb, depth, 224),
+                                  bridge.preprocess(rgb, depth))
+    with pytest.raises(ValueError, match="square"):
+        bridge.preprocess(rgb[:200], depth[:200], 112)

@@ -48,6 +48,10 @@ pub struct Args {
     /// small 10).
     #[arg(long)]
     pub grasp_images: Option<usize>,
+    /// Write the grasp images as whole camera frames (640×480) instead of the grasp network's
+    /// object-centred 0.22 m crops (224×224), e.g. for tools that crop themselves.
+    #[arg(long)]
+    pub grasp_full_frames: bool,
     /// How to show progress.
     #[arg(long, value_enum, default_value = "bar")]
     pub progress: ProgressMode,
@@ -66,6 +70,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(n) = args.grasp_images {
         spec.grasp_images = n;
+    }
+    if args.grasp_full_frames {
+        spec.grasp_crop = None;
     }
     spec.meshes = args.meshes.clone();
     spec.mesh_units =

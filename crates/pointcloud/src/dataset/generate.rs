@@ -228,7 +228,7 @@ pub fn generate(
             return Err(DatasetError::Cancelled);
         }
 
-        let grasp = export_grasp_set(spec, &objects, &instances, out_dir, progress)?;
+        let grasp = export_grasp_set(spec, &objects, &instances, &categories, out_dir, progress)?;
         let previews = if spec.previews {
             crate::preview::write_previews(&objects, spec.seed, &spec.grasp, out_dir, progress)?
         } else {
@@ -287,6 +287,7 @@ fn export_grasp_set(
     spec: &DatasetSpec,
     objects: &[ObjectModel],
     instances: &[InstanceInfo],
+    category_names: &[String],
     out_dir: &Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Option<GraspSetInfo>, DatasetError> {
@@ -298,12 +299,14 @@ fn export_grasp_set(
         images: spec.grasp_images,
         seed: spec.seed,
         grasp: &spec.grasp,
+        crop: spec.grasp_crop,
     };
     export_cornell(
         &out_dir.join("grasp"),
         &export,
         objects,
         &categories,
+        category_names,
         progress,
     )?;
     Ok(Some(GraspSetInfo {

@@ -134,6 +134,15 @@ pub enum DatasetError {
         /// What went wrong.
         reason: String,
     },
+    /// The object-centred crop of a grasp image failed.
+    #[error("grasp image {image}: {source}")]
+    GraspCrop {
+        /// Image index (from 0).
+        image: usize,
+        /// What went wrong.
+        #[source]
+        source: crate::crop::CropError,
+    },
     /// Generation was cancelled because another worker failed.
     #[error("cancelled")]
     Cancelled,
@@ -174,6 +183,7 @@ impl From<crate::grasp::CornellError> for DatasetError {
             C::Io { path, source } => DatasetError::Io { path, source },
             C::Image { path, reason } => DatasetError::Image { path, reason },
             C::Rectangles { path, reason } => DatasetError::Corrupt { path, reason },
+            C::Crop { image, source } => DatasetError::GraspCrop { image, source },
         }
     }
 }

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::DatasetError;
 use crate::augment::Augmentation;
+use crate::crop::CropSpec;
 use crate::grasp::GraspSpec;
 use crate::import::MeshUnits;
 use crate::math::look_at;
@@ -127,6 +128,11 @@ pub struct DatasetSpec {
     /// Gripper and sampling parameters of the grasp labels.
     #[serde(default)]
     pub grasp: GraspSpec,
+    /// The grasp images are object-centred crops of this size (presets: [`CropSpec::default`],
+    /// the grasp network's input); `None` writes whole camera frames (absent in manifests
+    /// written before crops existed, which held whole frames).
+    #[serde(default)]
+    pub grasp_crop: Option<CropSpec>,
     /// Write `contact_sheet.png` and `grasp_preview.png` (default: true).
     pub previews: bool,
 }
@@ -237,6 +243,7 @@ impl DatasetSpec {
             max_points_per_view: 2048,
             grasp_images: 10,
             grasp: GraspSpec::default(),
+            grasp_crop: Some(CropSpec::default()),
             previews: true,
         }
     }
@@ -367,6 +374,12 @@ impl DatasetSpec {
                 "grasp_images",
                 "at most 9899 (Cornell numbering pcd0100..pcd9998)".into(),
             );
+        }
+        if let Some(crop) = &self.grasp_crop {
+            crop.validate().map_err(|e| DatasetError::InvalidSpec {
+                field: "grasp_crop",
+                reason: e.to_string(),
+            })?;
         }
         self.grasp
             .validate()

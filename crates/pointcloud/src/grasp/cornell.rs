@@ -6,11 +6,16 @@
 //! <root>/<nn>/pcdNNNNd.tiff     depth, float32 metres (0 = no data)
 //! <root>/<nn>/pcdNNNNcpos.txt   positive rectangles: four "x y" corner lines each,
 //! <root>/<nn>/pcdNNNNcneg.txt   negative rectangles  first edge along the opening axis
-//! <root>/index.json             image number → object, camera, counts
+//! <root>/index.json             crop, finger width; per image: object, category, camera, window
 //! ```
 //!
 //! Image `k` (from 0) is number `NNNN = 100 + k` in folder `nn = NNNN / 100`, as in the
 //! original (`01/pcd0100r.png` …). Image `k` shows the seeded scene [`grasp_scene`]`(…, k, …)`.
+//!
+//! By default each image is the grasp network's input, the object-centred crop of
+//! [`crate::crop`] (found by segmentation, not from labels), with the rectangles in crop pixels
+//! and every rectangle's jaw the gripper's real finger width (`docs/DESIGN.md` §5); with
+//! [`CornellExport::crop`] `None` the whole camera frame is written instead (for other tools).
 //!
 //! This module knows nothing of datasets: [`export_cornell`] takes the objects, their category
 //! ids and a [`CornellExport`]; `dataset::generate` calls it for `<dataset>/grasp`.
@@ -29,7 +34,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::decode::InputCrop;
 use super::label::{GraspCandidate, GraspRectangle, GraspSpec, GraspVerdict, synthesize_grasps};
+use crate::crop::{CropError, CropSpec, ObjectCrop, crop_largest_object};
 use crate::fsutil::{write_atomic, write_json_atomic};
 use crate::image::{ImageError, RgbImage, write_depth_tiff};
 use crate::math::{Pose, derive_seed, look_at, rotation_z, translation};
@@ -37,6 +44,7 @@ use crate::mesh::Mesh;
 use crate::objects::ObjectModel;
 use crate::progress::{Progress, par_map_with_progress};
 use crate::render::{Camera, Intrinsics, RenderItem, RgbdFrame, render};
+use crate::segment::SegmentParams;
 
 /// Errors of the Cornell export and reader. Each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -57,6 +65,15 @@ pub enum CornellError {
         path: PathBuf,
         /// What went wrong.
         reason: String,
+    },
+    /// The object-centred crop of an image failed.
+    #[error("grasp image {image}: {source}")]
+    Crop {
+        /// Image index (from 0).
+        image: usize,
+        /// What went wrong.
+        #[source]
+        source: CropError,
     },
     /// A rectangle file is not Cornell rectangle text.
     #[error("rectangle file {}: {reason}", path.display())]
@@ -249,6 +266,25 @@ pub fn read_rectangles(path: &Path) -> Result<Vec<GraspRectangle>, CornellError>
         .collect())
 }
 
+/// Format tag of `index.json`.
+pub const INDEX_FORMAT: &str = "lgdm.grasp.v2";
+
+/// `index.json`: how the images were made and one entry per image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GraspIndex {
+    /// [`INDEX_FORMAT`].
+    pub format: String,
+    /// The object-centred crop of every image; `None`: whole camera frames.
+    pub crop: Option<CropSpec>,
+    /// Finger width of the gripper, metres: the jaw of every rectangle.
+    pub finger_width_m: f32,
+    /// With a crop: jaw length in pixels as a fraction of the image (or label map) side,
+    /// `finger_width_m / crop.side_m` — what decoders use for the jaw.
+    pub jaw_side_fraction: Option<f32>,
+    /// The images in order.
+    pub images: Vec<GraspImageInfo>,
+}
+
 /// One entry of `index.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GraspImageInfo {
@@ -260,10 +296,15 @@ pub struct GraspImageInfo {
     pub instance: u32,
     /// Category id.
     pub category: u32,
+    /// Category name.
+    pub category_name: String,
     /// Instance name.
     pub object: String,
     /// The camera (depth is its optical z).
     pub camera: Camera,
+    /// Where the crop sits in the camera frame (crop pixel → frame pixel); `None` for whole
+    /// frames.
+    pub window: Option<InputCrop>,
     /// Number of positive rectangles.
     pub positives: usize,
     /// Number of negative rectangles.
@@ -279,11 +320,15 @@ pub struct CornellExport<'a> {
     pub seed: u64,
     /// Gripper and sampling parameters of the labels.
     pub grasp: &'a GraspSpec,
+    /// The object-centred crop written (default in datasets: [`CropSpec::default`]); `None`
+    /// writes whole camera frames.
+    pub crop: Option<CropSpec>,
 }
 
 /// Writes `export.images` grasp-labelled images of `objects` (cycling through them) into
 /// `root` in the Cornell layout, then `root/index.json`, and returns the index. `categories[i]`
-/// is the category id recorded for `objects[i]`, whose instance id is `i`. Images are made in
+/// is the category id recorded for `objects[i]`, whose instance id is `i`; `category_names`
+/// is indexed by category id. Images are made in
 /// parallel; the files do not depend on the number of threads. `progress` is called on the
 /// calling thread (stage `grasp images`).
 ///
@@ -295,16 +340,29 @@ pub fn export_cornell(
     export: &CornellExport<'_>,
     objects: &[ObjectModel],
     categories: &[u32],
+    category_names: &[String],
     progress: &mut dyn FnMut(Progress),
-) -> Result<Vec<GraspImageInfo>, CornellError> {
+) -> Result<GraspIndex, CornellError> {
     assert_eq!(
         objects.len(),
         categories.len(),
         "one category id per object"
     );
+    if let Some(crop) = &export.crop {
+        crop.validate()
+            .map_err(|source| CornellError::Crop { image: 0, source })?;
+    }
+    let finger_width_m = export.grasp.finger_width_m;
+    let mut index = GraspIndex {
+        format: INDEX_FORMAT.to_string(),
+        crop: export.crop,
+        finger_width_m,
+        jaw_side_fraction: export.crop.map(|c| c.side_fraction(finger_width_m)),
+        images: Vec::new(),
+    };
     let total = export.images;
     if total == 0 || objects.is_empty() {
-        return Ok(Vec::new());
+        return Ok(index);
     }
     // After a failure the remaining images are skipped (`None`).
     let failed = AtomicBool::new(false);
@@ -316,7 +374,12 @@ pub fn export_cornell(
                 return None;
             }
             let o = k % objects.len();
-            let r = write_grasp_image(export, root, k, &objects[o], o as u32, categories[o]);
+            let category = categories[o];
+            let name = category_names
+                .get(category as usize)
+                .cloned()
+                .unwrap_or_else(|| category.to_string());
+            let r = write_grasp_image(export, root, k, &objects[o], o as u32, category, name);
             if r.is_err() {
                 failed.store(true, Ordering::SeqCst);
             }
@@ -332,11 +395,15 @@ pub fn export_cornell(
             });
         },
     );
-    let index = results
+    index.images = results
         .into_iter()
         .flatten()
         .collect::<Result<Vec<GraspImageInfo>, CornellError>>()?;
-    debug_assert_eq!(index.len(), total, "no image is skipped without a failure");
+    debug_assert_eq!(
+        index.images.len(),
+        total,
+        "no image is skipped without a failure"
+    );
     let index_path = root.join(INDEX_FILE);
     write_json_atomic(&index_path, &index).map_err(|e| CornellError::io(&index_path, e))?;
     Ok(index)
@@ -349,6 +416,7 @@ fn write_grasp_image(
     object: &ObjectModel,
     instance: u32,
     category: u32,
+    category_name: String,
 ) -> Result<GraspImageInfo, CornellError> {
     let scene = grasp_scene(export.grasp, export.seed, k, object);
     let number = cornell_number(k);
@@ -357,10 +425,28 @@ fn write_grasp_image(
     std::fs::create_dir_all(dir).map_err(|e| CornellError::io(dir, e))?;
     let with = |suffix: &str| PathBuf::from(format!("{}{suffix}", prefix.display()));
     let f = &scene.frame;
-    let (w, h) = (f.width as usize, f.height as usize);
-    RgbImage::from_pixels(w, h, f.rgb.clone()).write_png(&with("r.png"))?;
-    write_depth_tiff(&with("d.tiff"), w, h, &f.depth_m)?;
-    let (pos, neg) = (scene.positives(), scene.negatives());
+    let (mut pos, mut neg) = (scene.positives(), scene.negatives());
+    let window = match &export.crop {
+        None => {
+            let (w, h) = (f.width as usize, f.height as usize);
+            RgbImage::from_pixels(w, h, f.rgb.clone()).write_png(&with("r.png"))?;
+            write_depth_tiff(&with("d.tiff"), w, h, &f.depth_m)?;
+            None
+        }
+        Some(spec) => {
+            let found =
+                crop_largest_object(f, &scene.camera.intrinsics, &SegmentParams::default(), spec)
+                    .map_err(|source| CornellError::Crop { image: k, source })?;
+            let crop = found.crop;
+            let n = crop.size_px as usize;
+            let jaw_px = spec.size_px as f32 * spec.side_fraction(export.grasp.finger_width_m);
+            pos = rectangles_in_crop(&pos, &crop, jaw_px);
+            neg = rectangles_in_crop(&neg, &crop, jaw_px);
+            RgbImage::from_pixels(n, n, crop.rgb.clone()).write_png(&with("r.png"))?;
+            write_depth_tiff(&with("d.tiff"), n, n, &crop.depth_m)?;
+            Some(crop.window)
+        }
+    };
     write_rectangles(&with("cpos.txt"), &pos)?;
     write_rectangles(&with("cneg.txt"), &neg)?;
     Ok(GraspImageInfo {
@@ -368,11 +454,51 @@ fn write_grasp_image(
         prefix: format!("{:02}/pcd{number:04}", number / 100),
         instance,
         category,
+        category_name,
         object: object.name.clone(),
         camera: scene.camera,
+        window,
         positives: pos.len(),
         negatives: neg.len(),
     })
+}
+
+/// Rectangles of the camera frame in crop pixels, the jaw set to `jaw_px` (the finger width at
+/// the crop's scale); those whose centre falls outside the crop are dropped.
+pub fn rectangles_in_crop(
+    rectangles: &[GraspRectangle],
+    crop: &ObjectCrop,
+    jaw_px: f32,
+) -> Vec<GraspRectangle> {
+    let size = crop.size_px as f32;
+    rectangles
+        .iter()
+        .filter_map(|r| {
+            let c = r.corners_px.map(|p| crop.crop_from_frame(p));
+            let centre = crop.crop_from_frame(r.center());
+            let inside = |v: f32| (-0.5..size - 0.5).contains(&v);
+            if !(inside(centre[0]) && inside(centre[1])) {
+                return None;
+            }
+            let along = [c[1][0] - c[0][0], c[1][1] - c[0][1]];
+            let across = [c[2][0] - c[1][0], c[2][1] - c[1][1]];
+            let (la, lc) = (along[0].hypot(along[1]), across[0].hypot(across[1]));
+            if la <= 0.0 || lc <= 0.0 {
+                return None;
+            }
+            let u = [along[0] / 2.0, along[1] / 2.0];
+            let v = [across[0] / lc * jaw_px / 2.0, across[1] / lc * jaw_px / 2.0];
+            let [x, y] = centre;
+            Some(GraspRectangle {
+                corners_px: [
+                    [x - u[0] - v[0], y - u[1] - v[1]],
+                    [x + u[0] - v[0], y + u[1] - v[1]],
+                    [x + u[0] + v[0], y + u[1] + v[1]],
+                    [x - u[0] + v[0], y - u[1] + v[1]],
+                ],
+            })
+        })
+        .collect()
 }
 
 /// Draws rectangles on an image: positives green with the jaw edges highlighted, negatives

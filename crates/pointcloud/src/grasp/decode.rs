@@ -25,7 +25,12 @@
 //!   reach the threshold; takes them best first (ties by row, then column), a flat top (equal
 //!   maxima within the window) counting once at its mean position and the other maxima within
 //!   the window of an accepted one being dropped; and reads θ = ½·atan2(sin, cos),
-//!   opening = width · [`WIDTH_SCALE_PX`], jaw = opening · `jaw_fraction` (½) at the peak.
+//!   opening = width · [`WIDTH_SCALE_PX`] at the peak.
+//! - **The jaw is the gripper's finger width**: every decoded rectangle's jaw is
+//!   `jaw_side_fraction` × the map side, the finger width in the object-centred crop
+//!   ([`crate::crop`]: 0.02 m / 0.22 m, ≈ 10 px at 112 px) — the jaw every label of
+//!   `lgdm gen-dataset` has. `jaw_side_fraction: None` gives Cornell's jaw = opening / 2, for
+//!   whole-frame data labelled that way.
 //!
 //! The maps are at the network input resolution; [`InputCrop`] says where they sit in the
 //! camera image (train_ae's `data.py` crops a square and resizes it), and [`grasp_pose`] places
@@ -70,6 +75,13 @@ pub const WIDTH_SCALE_PX: f32 = 150.0;
 /// `LABEL_CENTRE_FRACTION` of train_ae's `grasp.py`).
 pub const LABEL_CENTRE_FRACTION: f32 = 1.0 / 3.0;
 
+/// Cornell's jaw: half the opening (`JAW_FRACTION` of train_ae's `grasp.py`).
+pub const CORNELL_JAW_FRACTION: f32 = 0.5;
+
+/// The default finger width over the default crop side (0.02 m / 0.22 m).
+pub const DEFAULT_JAW_SIDE_FRACTION: f32 =
+    super::label::DEFAULT_FINGER_WIDTH_M / crate::crop::DEFAULT_CROP_SIDE_M;
+
 /// Largest accepted smoothing σ, pixels (the kernel has `2·⌊4σ + ½⌋ + 1` taps).
 pub const MAX_SIGMA_PX: f32 = 64.0;
 
@@ -91,8 +103,10 @@ pub struct GraspDecodeParams {
     pub quality_sigma_px: f32,
     /// Gaussian σ smoothing the width map, pixels; 0 disables it (default: 1).
     pub width_sigma_px: f32,
-    /// Jaw extent of a decoded rectangle as a fraction of its opening (default: 0.5).
-    pub jaw_fraction: f32,
+    /// Jaw extent of a decoded rectangle as a fraction of the map side (default: 0.02 / 0.22,
+    /// the finger width in the default object-centred crop); `None`: half the opening
+    /// (Cornell's convention).
+    pub jaw_side_fraction: Option<f32>,
     /// Half-side of the square window of the depth image whose median valid depth places a
     /// grasp, pixels (default: 2, a 5×5 window).
     pub depth_radius_px: usize,
@@ -106,7 +120,7 @@ impl Default for GraspDecodeParams {
             min_distance_px: 20,
             quality_sigma_px: 2.0,
             width_sigma_px: 1.0,
-            jaw_fraction: 0.5,
+            jaw_side_fraction: Some(DEFAULT_JAW_SIDE_FRACTION),
             depth_radius_px: 2,
         }
     }
@@ -131,8 +145,11 @@ impl GraspDecodeParams {
         if !sigma_ok(self.width_sigma_px) {
             return bad("width_sigma_px", "must be in [0, 64]");
         }
-        if !(self.jaw_fraction.is_finite() && self.jaw_fraction > 0.0) {
-            return bad("jaw_fraction", "must be positive and finite");
+        if self
+            .jaw_side_fraction
+            .is_some_and(|f| !(f.is_finite() && f > 0.0 && f <= 1.0))
+        {
+            return bad("jaw_side_fraction", "must be in (0, 1]");
         }
         Ok(())
     }
@@ -648,7 +665,10 @@ pub fn decode_grasps(
             center_px: [cx as f32, cy as f32],
             angle,
             width_px,
-            jaw_px: width_px * params.jaw_fraction,
+            jaw_px: match params.jaw_side_fraction {
+                Some(f) => f * cols as f32,
+                None => width_px * CORNELL_JAW_FRACTION,
+            },
             quality: score,
         });
         if out.len() >= params.num_grasps {

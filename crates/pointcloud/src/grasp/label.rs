@@ -28,6 +28,9 @@ use crate::math::{add, cross, dot, normalize, scale, sub, transform_point};
 use crate::mesh::Mesh;
 use crate::render::{Camera, RgbdFrame};
 
+/// Width of a finger pad of the default gripper, metres.
+pub const DEFAULT_FINGER_WIDTH_M: f32 = 0.02;
+
 /// Gripper and sampling parameters of the grasp labels. Lengths in metres.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -57,7 +60,7 @@ impl Default for GraspSpec {
     fn default() -> Self {
         Self {
             max_opening_m: 0.085,
-            finger_width_m: 0.02,
+            finger_width_m: DEFAULT_FINGER_WIDTH_M,
             finger_length_m: 0.045,
             clearance_m: 0.004,
             friction: 0.5,

@@ -258,8 +258,9 @@ impl AutoEncoder {
         self.input_size
     }
 
-    /// The training normalisation of one image (`train_ae.bridge.preprocess`): `rgb` h × w × 3
-    /// bytes and `depth_m` h × w metres → 4 × h × w floats (depth, R, G, B planes).
+    /// The network input of one image (`train_ae.bridge.preprocess`): `rgb` h × w × 3 bytes and
+    /// `depth_m` h × w metres (a square crop, e.g. 224 px) → resized to the input size `s` with
+    /// training's resize, normalised → 4 × s × s floats (depth, R, G, B planes).
     pub fn preprocess(
         &self,
         rgb: &[u8],
@@ -286,9 +287,10 @@ impl AutoEncoder {
             let out = self
                 .bridge
                 .bind(py)
-                .call_method1("preprocess", (rgb, depth))
+                .call_method1("preprocess", (rgb, depth, self.input_size))
                 .map_err(|e| AeError::Input(e.to_string()))?;
-            floats(&out, &[4, h, w], "preprocess")
+            let s = self.input_size;
+            floats(&out, &[4, s, s], "preprocess")
         })
     }
 

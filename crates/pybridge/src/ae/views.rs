@@ -1,76 +1,86 @@
-//! The autoencoder's view pipeline: a view's point cloud → the network's RGB-D input
-//! ([`view_image`]: `lgdm_pointcloud::projection` at the network's input size, blank for an
-//! empty view, grey for a colourless one) → `train_ae.bridge.preprocess` → inference in batches
+//! The autoencoder's view pipeline: a view's point cloud → the grasp network's input, the
+//! object-centred crop of `lgdm_pointcloud::crop` ([`view_image`]: the cloud splatted over the
+//! table as the dataset's camera sees it, segmented and cropped exactly as the grasp images
+//! and the robot's camera are, so recognition sees what grasping was trained on) →
+//! `train_ae.bridge.preprocess` (resized to the network's input) → inference in batches
 //! ([`dataset_features`]: one 256-d L2-normalised feature per view of a dataset, rows in the
 //! GOOD table's order, so scenarios, caches and `lgdm train` treat both encoders alike).
 //!
-//! `lgdm features/train/eval --encoder ae` and (later) the robot's recognition call this; the
-//! feature cache keys on [`PIPELINE`] and the checkpoint's bytes.
+//! `lgdm features/train/eval --encoder ae` and the robot's recognition call this; the feature
+//! cache keys on [`PIPELINE`] and the checkpoint's bytes.
 
 use std::path::Path;
 
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::Progress;
+use lgdm_pointcloud::crop::{CropSpec, crop_largest_object};
 use lgdm_pointcloud::dataset::Dataset;
 use lgdm_pointcloud::features::FeatureTable;
-use lgdm_pointcloud::projection::{ProjectionError, ProjectionParams, project_to_image};
+use lgdm_pointcloud::grasp::cornell::{TABLE_LABEL, table_mesh};
+use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::render::{Camera, RenderItem, RgbdFrame, render, splat_cloud};
+use lgdm_pointcloud::segment::SegmentParams;
 
 use super::{AeError, AutoEncoder, FEATURE_DIM};
 
-/// Version of the view → network-input pipeline (projection parameters, empty-view and
-/// colourless-view handling). Part of the feature cache key: change it when the pipeline changes.
-pub const PIPELINE: &str = "ae-projection-v1 margin=0.08 splat=auto empty=blank grey=128";
+/// Version of the view → network-input pipeline (table, splatting, segmentation, crop).
+/// Part of the feature cache key: change it when the pipeline changes.
+pub const PIPELINE: &str = "ae-crop-v1 table=render splat=auto segment=default crop=0.22m/224px";
 
 /// Images per inference call.
 pub const AE_BATCH: usize = 32;
 
-/// Colour of object pixels when a view has no colours.
-const GREY: u8 = 128;
-
-/// One view as the network's input: `size`² pixels of RGB bytes and depth in metres.
+/// One view as the network sees it: the object-centred crop (RGB bytes and depth in metres).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewImage {
+    /// Side, pixels.
+    pub size: usize,
     /// size × size × 3 bytes, row-major.
     pub rgb: Vec<u8>,
-    /// size × size metres (0 where nothing was projected).
+    /// size × size metres (0 where nothing was seen).
     pub depth_m: Vec<f32>,
-    /// No point lay in front of the camera: the image is blank.
+    /// No object stood out of the table: the crop shows the table at the frame's centre.
     pub empty: bool,
 }
 
-/// The network input of one view at `params.size`: a blank image (all zeros) when no point lies
-/// in front of the camera; object pixels of a colourless cloud are grey.
-pub fn view_image(cloud: &PointCloud, params: &ProjectionParams) -> Result<ViewImage, AeError> {
-    let pixels = params.size * params.size;
-    match project_to_image(cloud, params) {
-        Ok(img) => {
-            let rgb = match img.rgb {
-                Some(rgb) => rgb.into_iter().flatten().collect(),
-                None => img
-                    .depth_m
-                    .iter()
-                    .flat_map(|&d| [if d > 0.0 { GREY } else { 0 }; 3])
-                    .collect(),
-            };
-            Ok(ViewImage {
-                rgb,
-                depth_m: img.depth_m,
-                empty: false,
-            })
-        }
-        Err(ProjectionError::Empty) => Ok(ViewImage {
-            rgb: vec![0; 3 * pixels],
-            depth_m: vec![0.0; pixels],
-            empty: true,
-        }),
-        Err(e) => Err(AeError::Input(format!("projecting a view: {e}"))),
-    }
+/// The table as `camera` sees it: the background every view is drawn over.
+pub fn table_frame(camera: &Camera) -> RgbdFrame {
+    let table = table_mesh();
+    render(
+        camera,
+        &[RenderItem {
+            mesh: &table,
+            world_from_object: Pose::identity(),
+            label: TABLE_LABEL,
+        }],
+    )
+}
+
+/// The network input of one view (a cloud in `camera`'s optical frame, standing on the table
+/// of `table`, which is [`table_frame`]`(camera)`): the cloud splatted over the table, then
+/// the object-centred crop of the largest object ([`CropSpec::default`]).
+pub fn view_image(
+    cloud: &PointCloud,
+    camera: &Camera,
+    table: &RgbdFrame,
+) -> Result<ViewImage, AeError> {
+    let mut frame = table.clone();
+    splat_cloud(&mut frame, &camera.intrinsics, cloud, None);
+    let spec = CropSpec::default();
+    let found = crop_largest_object(&frame, &camera.intrinsics, &SegmentParams::default(), &spec)
+        .map_err(|e| AeError::Input(format!("cropping a view: {e}")))?;
+    Ok(ViewImage {
+        size: spec.size_px as usize,
+        rgb: found.crop.rgb.into_iter().flatten().collect(),
+        depth_m: found.crop.depth_m,
+        empty: found.object.is_none(),
+    })
 }
 
 /// What [`dataset_features`] noticed besides the table.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FeatureStats {
-    /// Views with no point in front of the camera (given blank images).
+    /// Views in which no object stood out of the table (cropped at the frame's centre).
     pub empty_views: u64,
 }
 
@@ -84,13 +94,11 @@ pub fn dataset_features(
 ) -> Result<(FeatureTable, FeatureStats), AeError> {
     let model = AutoEncoder::load(checkpoint)?;
     let size = model.input_size();
-    let params = ProjectionParams {
-        size,
-        ..ProjectionParams::default()
-    };
     let dataset_err = |e: lgdm_pointcloud::dataset::DatasetError| AeError::Dataset(e.to_string());
     let manifest = ds.manifest();
     let total = manifest.views;
+    let camera = manifest.camera;
+    let background = table_frame(&camera);
     let mut table = FeatureTable::new(FEATURE_DIM);
     let mut batch: Vec<f32> = Vec::with_capacity(AE_BATCH * 4 * size * size);
     let mut pending = 0usize;
@@ -123,9 +131,9 @@ pub fn dataset_features(
             let seq = seq.map_err(dataset_err)?;
             let sequence = manifest.sequence_id(seq.collection, seq.instance);
             for (f, cloud) in seq.frames.iter().enumerate() {
-                let view = view_image(cloud, &params)?;
+                let view = view_image(cloud, &camera, &background)?;
                 stats.empty_views += u64::from(view.empty);
-                batch.extend(model.preprocess(&view.rgb, &view.depth_m, size, size)?);
+                batch.extend(model.preprocess(&view.rgb, &view.depth_m, view.size, view.size)?);
                 table.collection.push(c);
                 table.category.push(seq.category);
                 table.instance.push(seq.instance);
@@ -154,29 +162,36 @@ pub fn dataset_features(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lgdm_pointcloud::dataset::CameraSpec;
+    use lgdm_pointcloud::objects::procedural_object;
 
+    /// A mug's view (its mesh vertices in the turntable camera's frame) becomes a crop with the
+    /// mug at its centre over the table; a cloud behind the camera leaves only the table.
     #[test]
-    fn view_images_have_the_input_size_and_blank_empty_views() {
-        let params = ProjectionParams {
-            size: 16,
-            ..ProjectionParams::default()
-        };
-        let pts: Vec<[f32; 3]> = (0..100)
-            .map(|i| [(i % 10) as f32 * 0.01, (i / 10) as f32 * 0.01, 0.8])
-            .collect();
-        let v = view_image(&PointCloud::new(pts.clone(), None), &params).unwrap();
+    fn views_are_object_centred_crops_over_the_table() {
+        let camera = CameraSpec::default().camera();
+        let background = table_frame(&camera);
+        let mug = procedural_object("mug", 0, 1).unwrap();
+        // The mug's view as the dataset makes it (rendered, back-projected), without colours.
+        let frame = render(
+            &camera,
+            &[RenderItem {
+                mesh: &mug,
+                world_from_object: Pose::identity(),
+                label: 2,
+            }],
+        );
+        let pts = frame.backproject(&camera, 2).points;
+        let v = view_image(&PointCloud::new(pts, None), &camera, &background).unwrap();
         assert!(!v.empty);
-        assert_eq!((v.rgb.len(), v.depth_m.len()), (3 * 256, 256));
-        assert!(v.depth_m.iter().any(|&d| d > 0.0));
-        for (px, &d) in v.rgb.chunks(3).zip(&v.depth_m) {
-            assert_eq!(px[0], if d > 0.0 { GREY } else { 0 });
-        }
-        let colours = vec![[10u8, 20, 30]; pts.len()];
-        let v = view_image(&PointCloud::new(pts, Some(colours)), &params).unwrap();
-        assert!(v.rgb.chunks(3).any(|px| px == [10, 20, 30]));
+        assert_eq!((v.rgb.len(), v.depth_m.len()), (3 * 224 * 224, 224 * 224));
+        let centre = 112 * 224 + 112;
+        assert_eq!(&v.rgb[3 * centre..3 * centre + 3], &[128, 128, 128]);
+        // The corner is table (valid depth, farther than the mug).
+        assert!(v.depth_m[0] > v.depth_m[centre]);
         let behind = PointCloud::new(vec![[0.0, 0.0, -1.0]], None);
-        let v = view_image(&behind, &params).unwrap();
+        let v = view_image(&behind, &camera, &background).unwrap();
         assert!(v.empty);
-        assert!(v.rgb.iter().all(|&x| x == 0) && v.depth_m.iter().all(|&d| d == 0.0));
+        assert!(v.depth_m.iter().all(|&d| d > 0.0));
     }
 }

@@ -7,9 +7,17 @@
         A checkpoint written by ``python -m train_ae.train``, as a model in eval mode on the CPU.
     input_size(model) -> int
         The square side (pixels) the model was trained at; render or resize to it.
-    preprocess(rgb: uint8 (H, W, 3), depth: float32 (H, W) metres) -> float32 (4, H, W)
-        The exact training normalisation: [depth - mean(depth), RGB/255 - mean]. Non-finite
-        depth pixels are set to the mean of the finite ones first. No resizing.
+    jaw_side_fraction(model) -> float | None
+        Jaw of a decoded grasp as a fraction of the map side (finger width / crop side of the
+        training data); None: opening × 0.5 (the Cornell convention; older checkpoints).
+    preprocess(rgb: uint8 (H, W, 3), depth: float32 (H, W) metres, size: int | None = None)
+            -> float32 (4, S, S)
+        The exact training input. With ``size``, a square image of another side is first
+        resized to ``size`` with the training resize (``data.resize_to_input``: area averaging
+        for an integer factor, e.g. a 224-px crop to 112, else bilinear). Then the training
+        normalisation: [depth - mean(depth), RGB/255 - mean]; non-finite depth pixels are set
+        to the mean of the finite ones first. Without ``size`` (or at that size already) no
+        resizing, any H x W.
     infer(model, rgbd: float32 (N, 4, H, W)) -> (features, quality, cos2t, sin2t, width)
         features float32 (N, 256), L2-normalised; the four grasp maps float32 (N, H, W).
         Width is opening / WIDTH_SCALE_PX (pixels at this resolution); the angle is
@@ -22,7 +30,7 @@ Example::
 
     from train_ae import bridge
     m = bridge.load(bridge.default_checkpoint())        # or any checkpoint path
-    x = bridge.preprocess(rgb, depth)[None]            # (1, 4, S, S)
+    x = bridge.preprocess(rgb, depth, bridge.input_size(m))[None]   # (1, 4, S, S)
     features, quality, cos2t, sin2t, width = bridge.infer(m, x)
 """
 
@@ -34,11 +42,12 @@ import numpy as np
 import torch
 
 from .checkpoint import load_checkpoint
-from .data import normalize_rgbd
+from .data import normalize_rgbd, resize_to_input
 from .grasp import WIDTH_SCALE_PX
 from .model import GraspAutoencoder
 
-__all__ = ["WIDTH_SCALE_PX", "default_checkpoint", "infer", "input_size", "load", "preprocess"]
+__all__ = ["WIDTH_SCALE_PX", "default_checkpoint", "infer", "input_size", "jaw_side_fraction",
+           "load", "preprocess"]
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "cpu.pt"
 """The shipped ``cpu`` checkpoint (package data; how it was made: the package README)."""
@@ -65,9 +74,17 @@ def input_size(model: GraspAutoencoder) -> int:
     return int(model.config.input_size)
 
 
-def preprocess(rgb: np.ndarray, depth: np.ndarray) -> np.ndarray:
-    if np.asarray(rgb).dtype != np.uint8:
-        raise ValueError(f"rgb must be uint8, got {np.asarray(rgb).dtype}")
+def jaw_side_fraction(model: GraspAutoencoder) -> float | None:
+    j = model.config.jaw_side_fraction
+    return None if j is None else float(j)
+
+
+def preprocess(rgb: np.ndarray, depth: np.ndarray, size: int | None = None) -> np.ndarray:
+    rgb = np.asarray(rgb)
+    if rgb.dtype != np.uint8:
+        raise ValueError(f"rgb must be uint8, got {rgb.dtype}")
+    if size is not None and tuple(rgb.shape[:2]) != (size, size):
+        rgb, depth = resize_to_input(rgb, depth, int(size))  # checks shapes, square
     return np.ascontiguousarray(normalize_rgbd(rgb, depth))
 
 

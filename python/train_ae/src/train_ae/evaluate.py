@@ -4,7 +4,8 @@
 
 By default only the objects the checkpoint held out of training are scored (they must exist in
 DIR); ``--all`` scores every image in DIR (e.g. a different dataset). Prints n, the accuracy
-and a 95 % Wilson confidence interval.
+and a 95 % Wilson confidence interval. Decoded jaws follow the checkpoint's
+``jaw_side_fraction`` (the training data's finger width), or opening / 2 when it has none.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 import torch
 
 from .checkpoint import load_checkpoint
-from .data import DatasetError, GraspDataset, find_samples, read_object_map
+from .data import DatasetError, GraspDataset, find_samples, read_grasp_index, read_object_map
 from .progress import ProgressBar
 from .training import evaluate_model, format_result
 
@@ -39,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         model, ckpt = load_checkpoint(a.ckpt)
         object_map = read_object_map(a.object_map) if a.object_map else None
         samples = find_samples(a.data, object_map)
+        index = read_grasp_index(a.data)
         if not a.all:
             held = ((ckpt.get("metrics") or {}).get("heldout") or {}).get("objects")
             if not held:
@@ -50,12 +52,20 @@ def main(argv: list[str] | None = None) -> int:
     except (DatasetError, FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    jaw = model.config.jaw_side_fraction
+    data_jaw = index.jaw_side_fraction if index is not None else None
+    if (jaw is None) != (data_jaw is None) or (
+            jaw is not None and abs(jaw - data_jaw) > 1e-6 * jaw):
+        print(f"warning: the checkpoint decodes jaws with jaw_side_fraction {jaw}, the index of "
+              f"{a.data} says {data_jaw}; using the checkpoint's", file=sys.stderr)
     ds = GraspDataset(samples, model.config.input_size, augment=False)
     bar = ProgressBar(len(ds), "evaluate", enabled=not a.quiet)
-    result = evaluate_model(model, ds, progress=lambda done, total: bar.update(done - bar.done))
+    result = evaluate_model(model, ds, progress=lambda done, total: bar.update(done - bar.done),
+                            jaw_side_fraction=jaw)
     bar.close()
     objects = sorted({s.object_id for s in samples})
     result["objects"] = objects
+    result["jaw_side_fraction"] = jaw
     print(f"config {model.config.name}, {len(objects)} objects: {format_result(result)}",
           file=sys.stderr)
     if a.json:

@@ -11,6 +11,9 @@ Conventions (shared with the Rust decoder):
   seen on screen from the +x axis: θ = atan2(-(y1 - y0), x1 - x0), wrapped to [-π/2, π/2).
   A parallel-jaw grasp is symmetric under θ -> θ + π, so maps encode cos 2θ and sin 2θ.
 * Width maps hold ``width_px / WIDTH_SCALE_PX`` (clipped to [0, 1]); decoding multiplies back.
+* Label maps use each rectangle's own jaw. A decoded rectangle's jaw is ``jaw_px`` pixels when
+  given (lgdm data: every label's jaw is the finger width, ``jaw_side_fraction`` x map side),
+  else ``JAW_FRACTION`` x its opening (GG-CNN's convention for the real Cornell set).
 
 Example::
 
@@ -18,7 +21,7 @@ Example::
 
     gt = GraspRectangle(center_x=50, center_y=40, angle=0.3, width_px=30, jaw_px=15)
     q, c2, s2, w = grasp_maps([gt], (112, 112))
-    best = decode_grasps(q, c2, s2, w, num_grasps=1)[0]
+    best = decode_grasps(q, c2, s2, w, num_grasps=1, jaw_px=15)[0]
     assert is_correct(best, [gt])
 """
 
@@ -54,7 +57,8 @@ PEAK_MIN_DISTANCE_PX = 20
 """Minimum distance between two decoded grasp centres (local-maximum window radius)."""
 
 JAW_FRACTION = 0.5
-"""Decoded rectangles get a jaw extent of this fraction of their opening width (GG-CNN)."""
+"""Without a known jaw (``jaw_px=None``, the real Cornell set) decoded rectangles get a jaw
+extent of this fraction of their opening width (GG-CNN)."""
 
 LABEL_CENTRE_FRACTION = 1.0 / 3.0
 """Label maps mark only this central fraction of each rectangle's opening axis (GG-CNN)."""
@@ -237,7 +241,8 @@ def gaussian_smooth(image: np.ndarray | torch.Tensor, sigma: float) -> torch.Ten
 
 def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, width: np.ndarray,
                   num_grasps: int = 1, threshold: float = QUALITY_THRESHOLD,
-                  min_distance_px: int = PEAK_MIN_DISTANCE_PX) -> list[GraspRectangle]:
+                  min_distance_px: int = PEAK_MIN_DISTANCE_PX, jaw_px: float | None = None
+                  ) -> list[GraspRectangle]:
     """Best grasps from one image's (H, W) maps, highest smoothed quality first.
 
     Smooths quality, cos 2θ and sin 2θ with σ = 2 px (the trigonometric maps, not the wrapped
@@ -245,8 +250,11 @@ def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, wid
     that reach ``threshold`` (a flat top counts once, at its mean position; other maxima
     within the window of an accepted one are dropped), and returns at most ``num_grasps``
     rectangles with θ = atan2(sin 2θ, cos 2θ) / 2, opening = width * WIDTH_SCALE_PX and
-    jaw = opening * JAW_FRACTION.
+    jaw = ``jaw_px`` (the gripper's finger width in map pixels: lgdm data), or
+    opening * JAW_FRACTION when ``jaw_px`` is None (the real Cornell set).
     """
+    if jaw_px is not None and not (math.isfinite(jaw_px) and jaw_px > 0):
+        raise ValueError(f"jaw_px must be a positive number or None, got {jaw_px!r}")
     q_t = gaussian_smooth(quality, QUALITY_SIGMA_PX)
     k = 2 * min_distance_px + 1
     local_max = F.max_pool2d(q_t[None, None], k, stride=1, padding=min_distance_px)[0, 0]
@@ -276,7 +284,7 @@ def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, wid
         out.append(GraspRectangle(
             center_x=cx, center_y=cy,
             angle=wrap_angle(0.5 * math.atan2(float(s[r, col]), float(c[r, col]))),
-            width_px=opening, jaw_px=opening * JAW_FRACTION,
+            width_px=opening, jaw_px=opening * JAW_FRACTION if jaw_px is None else float(jaw_px),
         ))
         if len(out) >= num_grasps:
             break
@@ -292,3 +300,9 @@ def wilson_interval(correct: int, n: int, z: float = 1.959963984540054) -> tuple
     centre = (p + z * z / (2 * n)) / denom
     half = z / denom * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def jaw_px_for(jaw_side_fraction: float | None, map_side: int) -> float | None:
+    """The ``jaw_px`` to decode with: ``jaw_side_fraction`` (finger width / crop side, from an
+    lgdm dataset's index or a checkpoint) times the map side, or None (opening × JAW_FRACTION)."""
+    return None if jaw_side_fraction is None else float(jaw_side_fraction) * map_side

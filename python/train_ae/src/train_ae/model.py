@@ -69,6 +69,11 @@ class ModelConfig:
     """Residual blocks at c channels after the feature tap (default: 3)."""
     head_dropout: float = 0.1
     """Dropout before the output heads, training only (default: 0.1, as the public code)."""
+    jaw_side_fraction: float | None = None
+    """Not architecture: the decoding convention of the training data. A decoded grasp's jaw
+    is this fraction of the map side (lgdm crops: finger width / crop side, from the dataset's
+    index.json); None = opening × ``grasp.JAW_FRACTION`` (the real Cornell set). Default None;
+    checkpoints without the field read as None."""
 
     @staticmethod
     def preset(name: str) -> ModelConfig:
@@ -112,6 +117,11 @@ class ModelConfig:
         if not isinstance(cfg.head_dropout, (int, float)) or not 0 <= cfg.head_dropout < 1:
             raise ValueError(f"model config: head_dropout must be in [0, 1), got "
                              f"{cfg.head_dropout!r}")
+        j = cfg.jaw_side_fraction
+        if j is not None and (isinstance(j, bool) or not isinstance(j, (int, float))
+                              or not 0 < j < 1):
+            raise ValueError(f"model config: jaw_side_fraction must be None or in (0, 1), got "
+                             f"{j!r}")
         return cfg
 
     @property

@@ -1,18 +1,27 @@
 """Train the grasp autoencoder on a Cornell-layout directory and evaluate it on held-out objects.
 
     python -m train_ae.train --data DIR --config cpu --epochs N --out CKPT
-        [--batch-size 8] [--lr 1e-3] [--seed 0] [--val-fraction 0.1] [--object-map FILE]
-        [--threads 2] [--no-augment] [--quiet]
+        [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop] [--loss weighted|paper]
+        [--pos-weight 10] [--seed 0] [--holdout per-category|fraction] [--per-category 1]
+        [--val-fraction 0.1] [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
 
-Whole objects (``<nn>`` folders, or the ids of --object-map) are held out; the network of the
-FINAL epoch is scored on them with the rectangle metric (n and a 95 % Wilson interval). Nothing
-on the held-out objects chooses an epoch or a setting. Same seed and thread count -> same
-checkpoint bytes.
+Whole objects are held out: by default one instance per category (``--holdout per-category``,
+when the lgdm ``index.json`` gives categories), else a seeded ``--val-fraction`` of all objects
+(``--holdout fraction``; the real Cornell set, where objects are ``<nn>`` folders or the ids of
+--object-map). The network of the FINAL epoch is scored on them with the rectangle metric (n and
+a 95 % Wilson interval), decoding jaws as the training data's index says (the finger width) or,
+without one, as opening / 2. Nothing on the held-out objects chooses an epoch or a setting.
+
+Defaults depart from the paper (RMSprop, plain smooth-L1 sum: ``--optimizer rmsprop --loss
+paper``): Adam and a loss weighting positive pixels ×10 (see ``train_ae.training``).
+
+Same seed and thread count -> same checkpoint bytes.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -20,10 +29,25 @@ from pathlib import Path
 import torch
 
 from .checkpoint import save_checkpoint
-from .data import DatasetError, GraspDataset, find_samples, read_object_map, split_by_object
+from .data import (
+    DatasetError,
+    GraspDataset,
+    find_samples,
+    read_grasp_index,
+    read_object_map,
+    split_by_object,
+    split_held_out_instances,
+)
 from .model import GraspAutoencoder, ModelConfig, parameter_count
 from .progress import ProgressBar
-from .training import evaluate_model, format_result, train_model
+from .training import (
+    DEFAULT_POS_WEIGHT,
+    LOSSES,
+    OPTIMIZERS,
+    evaluate_model,
+    format_result,
+    train_model,
+)
 
 
 def _args(argv: list[str] | None) -> argparse.Namespace:
@@ -35,22 +59,40 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=Path, help="checkpoint file to write")
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--optimizer", choices=OPTIMIZERS, default="adam",
+                   help="adam (default) or rmsprop (the paper's)")
+    p.add_argument("--loss", choices=LOSSES, default="weighted",
+                   help="weighted (default: positives x --pos-weight in all four terms) or "
+                        "paper (sum of four plain smooth-L1 means)")
+    p.add_argument("--pos-weight", type=float, default=DEFAULT_POS_WEIGHT,
+                   help=f"weight of positive pixels for --loss weighted (default "
+                        f"{DEFAULT_POS_WEIGHT:g})")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--holdout", choices=["per-category", "fraction"], default=None,
+                   help="held-out objects: per-category (default when the index gives "
+                        "categories) or fraction (default otherwise)")
+    p.add_argument("--per-category", type=int, default=1,
+                   help="objects held out per category with --holdout per-category (default 1)")
     p.add_argument("--val-fraction", type=float, default=0.1,
-                   help="fraction of objects held out for the final evaluation (default 0.1)")
+                   help="fraction of objects held out with --holdout fraction (default 0.1)")
     p.add_argument("--object-map", type=Path, help="file of '<stem> <object id>' lines")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
-    p.add_argument("--no-augment", action="store_true", help="no random rotation and zoom")
+    p.add_argument("--no-augment", action="store_true",
+                   help="no random shift, flip and rotation (zoom for non-square images)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
     if a.epochs < 1:
         p.error("--epochs must be at least 1")
     if a.batch_size < 1:
         p.error("--batch-size must be at least 1")
-    if a.lr <= 0:
+    if not a.lr > 0:
         p.error("--lr must be positive")
+    if not a.pos_weight > 0:
+        p.error("--pos-weight must be positive")
     if not 0 <= a.val_fraction < 1:
         p.error("--val-fraction must be in [0, 1)")
+    if a.per_category < 0:
+        p.error("--per-category must be non-negative")
     if a.threads < 1:
         p.error("--threads must be at least 1")
     return a
@@ -60,18 +102,35 @@ def run(a: argparse.Namespace) -> dict:
     torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(a.seed)
+    log = sys.stderr
     object_map = read_object_map(a.object_map) if a.object_map else None
+    index = read_grasp_index(a.data)
     samples = find_samples(a.data, object_map)
-    train_s, held_s = split_by_object(samples, a.val_fraction, a.seed)
-    config = ModelConfig.preset(a.config)
+    has_categories = all(s.category is not None for s in samples)
+    holdout = a.holdout or ("per-category" if has_categories else "fraction")
+    if holdout == "per-category":
+        if not has_categories:
+            raise DatasetError(f"{a.data}: --holdout per-category needs categories from an lgdm "
+                               f"index.json (format lgdm.grasp.v2); use --holdout fraction")
+        train_s, held_s = split_held_out_instances(samples, a.per_category, a.seed)
+    else:
+        train_s, held_s = split_by_object(samples, a.val_fraction, a.seed)
+    jaw_fraction = index.jaw_side_fraction if index is not None else None
+    config = dataclasses.replace(ModelConfig.preset(a.config), jaw_side_fraction=jaw_fraction)
     model = GraspAutoencoder(config)
     train_objects = sorted({s.object_id for s in train_s})
     held_objects = sorted({s.object_id for s in held_s})
-    log = sys.stderr
+    jaw_txt = (f"decoded jaw = {jaw_fraction:.4f} x side "
+               f"({jaw_fraction * config.input_size:.2f} px)" if jaw_fraction is not None
+               else "decoded jaw = opening / 2 (no lgdm index)")
     print(f"config {config.name}: {parameter_count(model):,} parameters, input "
-          f"{config.input_size}x{config.input_size}; {len(train_s)} training images of "
-          f"{len(train_objects)} objects, {len(held_s)} held-out images of {len(held_objects)} "
-          f"objects {held_objects}", file=log)
+          f"{config.input_size}x{config.input_size}; {jaw_txt}", file=log)
+    print(f"held out ({holdout}): {len(held_s)} images of {len(held_objects)} objects "
+          f"{held_objects}; training: {len(train_s)} images of {len(train_objects)} objects",
+          file=log)
+    print(f"optimizer {a.optimizer} lr {a.lr:g}, loss {a.loss}"
+          + (f" (positives x{a.pos_weight:g})" if a.loss == "weighted" else "")
+          + f", batch {a.batch_size}, augment {'off' if a.no_augment else 'on'}", file=log)
     train_ds = GraspDataset(train_s, config.input_size, augment=not a.no_augment, seed=a.seed)
     bars: dict[int, ProgressBar] = {}
 
@@ -86,7 +145,8 @@ def run(a: argparse.Namespace) -> dict:
         if done == total:
             bar.close()
 
-    hist = train_model(model, train_ds, a.epochs, a.batch_size, a.lr, a.seed, progress)
+    hist = train_model(model, train_ds, a.epochs, a.batch_size, a.lr, a.seed, progress,
+                       loss=a.loss, pos_weight=a.pos_weight, optimizer=a.optimizer)
     s_per_img = hist.seconds / max(hist.images, 1)
     print(f"trained {a.epochs} epochs in {hist.seconds:.1f} s ({s_per_img:.3f} s per image, "
           f"{a.threads} threads); final epoch loss {hist.epoch_loss[-1]:.4f}", file=log)
@@ -95,12 +155,12 @@ def run(a: argparse.Namespace) -> dict:
     if held_s:
         ds = GraspDataset(held_s, config.input_size, augment=False)
         t0 = time.perf_counter()
-        heldout = evaluate_model(model, ds)
+        heldout = evaluate_model(model, ds, jaw_side_fraction=jaw_fraction)
         heldout["objects"] = held_objects
         print(f"held-out objects, final epoch {a.epochs}: {format_result(heldout)} "
               f"[{time.perf_counter() - t0:.1f} s]", file=log)
     else:
-        print("no held-out objects (fewer than two objects or --val-fraction 0): "
+        print("no held-out objects (too few objects, --val-fraction 0 or --per-category 0): "
               "no evaluation", file=log)
     metrics = {
         "training": {
@@ -108,9 +168,14 @@ def run(a: argparse.Namespace) -> dict:
             "epochs": a.epochs,
             "batch_size": a.batch_size,
             "lr": a.lr,
-            "optimizer": "RMSprop",
+            "optimizer": a.optimizer,
+            "loss": a.loss,
+            "pos_weight": a.pos_weight if a.loss == "weighted" else None,
             "seed": a.seed,
-            "val_fraction": a.val_fraction,
+            "holdout": holdout,
+            "per_category": a.per_category if holdout == "per-category" else None,
+            "val_fraction": a.val_fraction if holdout == "fraction" else None,
+            "jaw_side_fraction": jaw_fraction,
             "augment": not a.no_augment,
             "threads": a.threads,
             "train_objects": train_objects,
