@@ -275,6 +275,12 @@ def test_perfect_maps_on_lgdm_crops_score_everything_with_the_finger_jaw(lgdm_di
 
     result = evaluate_model(Oracle(), ds, batch_size=5, jaw_side_fraction=0.02 / 0.22)
     assert result["n"] == len(ds) == result["correct"]
+    # Per category and per object, the counts add up to the whole.
+    cats = {s.category for s in ds.samples}
+    assert set(result["per_category"]) == cats and len(cats) > 1
+    assert sum(v["n"] for v in result["per_category"].values()) == result["n"]
+    assert sum(v["correct"] for v in result["per_object"].values()) == result["correct"]
+    assert result["no_grasp"] == 0
 
 
 def test_bridge_preprocess_resizes_crops_like_training(lgdm_dir):

@@ -1,7 +1,7 @@
 """Regenerate the shipped default checkpoint (``weights/cpu.pt``) from scratch.
 
     python -m train_ae.make_default --lgdm PATH/TO/lgdm --work DIR [--out CKPT]
-        [--preset paper] [--images 1500] [--epochs 60] [--seed 0] [--threads 1] [--skip-data]
+        [--preset paper] [--images 2000] [--epochs 50] [--seed 0] [--threads 1] [--skip-data]
 
 Two steps, each printed as the equivalent shell command before it runs:
 
@@ -30,8 +30,8 @@ from .bridge import DEFAULT_CHECKPOINT
 
 DEFAULTS = {
     "preset": "paper",
-    "images": 1500,
-    "epochs": 60,
+    "images": 2000,
+    "epochs": 50,
     "seed": 0,
     "threads": 1,
 }

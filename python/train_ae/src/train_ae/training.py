@@ -147,7 +147,9 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
     threshold counts as incorrect.
     """
     model.eval()
-    n = correct = skipped = 0
+    n = correct = skipped = no_grasp = 0
+    per_category: dict[str, list[int]] = {}
+    per_object: dict[str, list[int]] = {}
     total = len(dataset)
     with torch.inference_mode():
         for start in range(0, total, batch_size):
@@ -161,8 +163,16 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
                 q = maps[0][j].numpy()
                 pred = decode_grasps(*(m[j].numpy() for m in maps), num_grasps=1,
                                      jaw_px=jaw_px_for(jaw_side_fraction, q.shape[-1]))
+                ok = int(bool(pred) and is_correct(pred[0], gt))
                 n += 1
-                correct += int(bool(pred) and is_correct(pred[0], gt))
+                correct += ok
+                no_grasp += int(not pred)
+                sample = dataset.samples[idx[j]]
+                for key, table in ((sample.category or "-", per_category),
+                                   (sample.object_id, per_object)):
+                    table.setdefault(key, [0, 0])
+                    table[key][0] += ok
+                    table[key][1] += 1
             if progress is not None:
                 progress(idx[-1] + 1, total)
     lo, hi = wilson_interval(correct, n)
@@ -172,6 +182,9 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
         "accuracy": correct / n if n else None,
         "ci95": [lo, hi],
         "skipped_no_ground_truth": skipped,
+        "no_grasp": no_grasp,
+        "per_category": {k: {"correct": v[0], "n": v[1]} for k, v in sorted(per_category.items())},
+        "per_object": {k: {"correct": v[0], "n": v[1]} for k, v in sorted(per_object.items())},
     }
 
 
@@ -180,5 +193,12 @@ def format_result(result: dict) -> str:
     if not n:
         return "rectangle metric: n = 0 (no scorable images)"
     lo, hi = result["ci95"]
-    return (f"rectangle metric (top-1 grasp, IoU > 0.25 and |Δθ| ≤ 30°): {k}/{n} = "
+    text = (f"rectangle metric (top-1 grasp, IoU > 0.25 and |Δθ| ≤ 30°): {k}/{n} = "
             f"{100 * k / n:.1f} % (95 % Wilson CI {100 * lo:.1f}–{100 * hi:.1f} %), n = {n}")
+    if result.get("no_grasp"):
+        text += f"; no grasp above the threshold on {result['no_grasp']}"
+    cats = result.get("per_category") or {}
+    if len(cats) > 1 or (cats and "-" not in cats):
+        text += "\n  per category: " + ", ".join(
+            f"{c} {v['correct']}/{v['n']}" for c, v in cats.items())
+    return text
