@@ -1,2 +1,73 @@
 //! Tabletop simulation: a kinematic arm and a parallel-jaw gripper that recognise, grasp and place
-//! objects. Not built yet: this crate only reserves its place in the workspace.
+//! objects. Built so far: the arm, the physics world and the gripper.
+//!
+//! - [`arm`]: the kinematic model of a UR-class arm ([`ArmModel::ur5e`], [`ArmModel::ur5_cb3`]),
+//!   forward kinematics of every link and the tool, the geometric Jacobian.
+//! - [`ik`]: inverse kinematics as a sequence of QPs with joint limits (clarabel), for full
+//!   poses and top-down grasps; unreachable targets are typed errors.
+//! - [`trajectory`]: joint trajectories timed within the speed and acceleration limits, and
+//!   straight-line tool moves (approach, descend, lift).
+//! - [`world`]: the rapier3d physics world — the reference table (top at z = 0.785 m), two
+//!   baskets, a floor, and dynamic objects built from the pointcloud crate's meshes (convex
+//!   hulls); spawn, drop at a random pose, settle, read poses back for the renderer.
+//! - [`gripper`]: a kinematic palm and two dynamic, force-limited fingers on prismatic joints;
+//!   opening commands ramp, the gap is read from body poses, contacts per finger.
+//! - [`robot`]: the arm's links as kinematic bodies posed by forward kinematics, the gripper at
+//!   the tool frame, trajectories followed in sim time with optional stop-on-contact.
+//!
+//! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
+//! teleported. Physics is single-threaded and deterministic: same inputs, same bits.
+//!
+//! Lengths are metres, angles radians, times seconds; frames are named `a_from_b`
+//! (`world_from_tool` maps tool coordinates into the world). The world is Z up.
+//!
+//! ```
+//! use lgdm_sim::arm::ArmModel;
+//! use lgdm_sim::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
+//! use lgdm_sim::trajectory::JointTrajectory;
+//! let arm = ArmModel::ur5e();
+//! let mut ik = IkSolver::new(arm.clone(), IkConfig::default()).unwrap();
+//! let grasp = TopDownGrasp::new([0.5, -0.1, 0.2], 0.4);
+//! let q = ik.solve(&IkTarget::TopDown(grasp), &arm.home_rad).unwrap().joints_rad;
+//! let move_there = JointTrajectory::point_to_point(&arm, &arm.home_rad, &q).unwrap();
+//! assert_eq!(move_there.sample(move_there.duration_s()), q);
+//! ```
+//!
+//! The physics side (see [`world`], [`gripper`] and [`robot`] for more):
+//!
+//! ```
+//! use lgdm_pointcloud::mesh::Mesh;
+//! use lgdm_sim::gripper::{Gripper, GripperConfig, top_down_palm_pose};
+//! use lgdm_sim::world::{World, WorldConfig};
+//! let mut world = World::new(WorldConfig::default()).unwrap();
+//! let top_z = world.config().table.top_z_m();
+//! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
+//! let pose = lgdm_pointcloud::math::translation([0.05, -0.52, top_z]);
+//! let cube = world.spawn_object("cube", &cube, &pose).unwrap();
+//! world.settle();
+//! // Pads around the cube, closing.
+//! let at = top_down_palm_pose([0.05, -0.52, f64::from(top_z) + 0.03], 0.0);
+//! let mut gripper = Gripper::new(&mut world, GripperConfig::default(), &at, 0.085).unwrap();
+//! gripper.set_opening(0.0).unwrap();
+//! while !gripper.opening_settled() {
+//!     gripper.step(&mut world);
+//! }
+//! let grip = gripper.grip_reading(&world, cube).unwrap();
+//! assert!(grip.pinching() && (grip.gap_m - 0.05).abs() < 2e-3);
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod arm;
+pub mod gripper;
+pub mod ik;
+pub mod robot;
+pub mod trajectory;
+pub mod world;
+
+pub use arm::{ArmModel, ArmPose, Joints};
+pub use gripper::{GripReading, Gripper, GripperConfig, PalmPath};
+pub use ik::{IkConfig, IkError, IkSolution, IkSolver, IkTarget, TopDownGrasp};
+pub use robot::{FollowOptions, FollowReport, Robot, RobotConfig, RobotError};
+pub use trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
+pub use world::{ObjectHandle, World, WorldConfig, WorldError};
