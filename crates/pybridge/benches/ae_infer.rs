@@ -1,8 +1,8 @@
 //! Time per image of the autoencoder through the bridge (`AutoEncoder::infer`: numpy copy in,
 //! torch forward, five arrays copied out), `cpu` configuration (112×112), batch 1 and 16, beside
 //! the same `train_ae.bridge.infer` call made on a ready numpy array with no copies (`python_call`,
-//! same process: the difference is the bridge's cost), and `AutoEncoder::preprocess` for one
-//! image. The standalone-Python figure: `python -m train_ae.bench --config cpu --batch-size 16`.
+//! same process: the difference is the bridge's cost), and `AutoEncoder::preprocess` of one
+//! 224-px object-centred crop (resize to 112 and normalisation). The standalone-Python figure: `python -m train_ae.bench --config cpu --batch-size 16`.
 //! Run with `cargo bench -p lgdm-pybridge --features ae --bench ae_infer` (a venv with torch and
 //! train_ae as for the `ae_bridge` test; `OMP_NUM_THREADS=1` on a loaded machine, where two
 //! OpenMP threads on two busy cores make batch-1 times erratic). Criterion reports the time per
@@ -73,11 +73,14 @@ fn bench(c: &mut Criterion) {
             });
         });
     }
-    let rgb: Vec<u8> = (0..s * s * 3).map(|i| (i * 7 % 251) as u8).collect();
-    let depth: Vec<f32> = (0..s * s).map(|i| 0.6 + 0.001 * (i % s) as f32).collect();
+    // One object-centred crop as the robot and the datasets make it (224 px), resized to the
+    // input and normalised.
+    let c = lgdm_pointcloud::crop::DEFAULT_CROP_PX as usize;
+    let rgb: Vec<u8> = (0..c * c * 3).map(|i| (i * 7 % 251) as u8).collect();
+    let depth: Vec<f32> = (0..c * c).map(|i| 0.6 + 0.001 * (i % c) as f32).collect();
     group.throughput(Throughput::Elements(1));
-    group.bench_function("preprocess", |b| {
-        b.iter(|| model.preprocess(&rgb, &depth, s, s).unwrap())
+    group.bench_function("preprocess_crop", |b| {
+        b.iter(|| model.preprocess(&rgb, &depth, c, c).unwrap())
     });
     group.finish();
 }

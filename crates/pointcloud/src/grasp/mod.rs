@@ -6,6 +6,9 @@
 //! - [`cornell`]: seeded top-down grasp scenes ([`grasp_scene`]) written as grasp-labelled
 //!   RGB-D images in the Cornell grasping dataset's layout ([`export_cornell`]), and the
 //!   rectangle text files read back ([`read_rectangles`]).
+//! - [`analytic`]: antipodal grasps computed from an object-centred crop's depth image alone
+//!   ([`analytic_grasps`]), in the decoded grasps' conventions — the robot's grasp source
+//!   without a network.
 //! - [`decode`]: the grasp network's pixel-wise maps → ranked rectangles → 3-D grasp poses in
 //!   the camera frame ([`decode_grasps`], [`grasp_pose`]), and rectangles → training maps
 //!   ([`grasp_maps`]), with train_ae's conventions.
@@ -26,10 +29,14 @@
 //! assert!(!positives.is_empty());
 //! ```
 
+pub mod analytic;
 pub mod cornell;
 pub mod decode;
 pub mod label;
 
+pub use analytic::{
+    AnalyticError, AnalyticGrasp, AnalyticParams, analytic_grasps, analytic_grasps_detailed,
+};
 pub use cornell::{
     CornellError, CornellExport, GraspImageInfo, GraspScene, export_cornell, grasp_scene,
     read_rectangles, write_rectangles,
