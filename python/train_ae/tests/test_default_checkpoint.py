@@ -31,6 +31,11 @@ def test_default_checkpoint_loads_as_the_cpu_configuration():
     assert bridge.input_size(model) == 112
     heldout = ckpt["metrics"]["heldout"]
     assert heldout["n"] > 0 and 0 <= heldout["correct"] <= heldout["n"]
+    # Trained on object-centred crops: decodes with the finger-width jaw, and held out one
+    # whole instance of each of the ten categories.
+    assert model.config.jaw_side_fraction == pytest.approx(0.02 / 0.22, rel=1e-6)
+    cats = {o.rsplit("_", 1)[0] for o in heldout["objects"]}
+    assert len(heldout["objects"]) == len(cats) == 10
 
     rng = np.random.default_rng(0)
     rgb = rng.integers(0, 256, (112, 112, 3), dtype=np.uint8)
