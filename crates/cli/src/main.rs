@@ -33,6 +33,8 @@ enum Command {
     Features(cmd::features::Args),
     /// Combine the trials of several run directories of one experiment into one run.
     Merge(cmd::merge::Args),
+    /// The tabletop robot: grasp trials in the physics simulation.
+    Sim(cmd::sim::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -51,6 +53,7 @@ fn main() -> std::process::ExitCode {
         Command::GenDataset(args) => cmd::gen_dataset::run(args),
         Command::Features(args) => cmd::features::run(args),
         Command::Merge(args) => cmd::merge::run(args),
+        Command::Sim(args) => cmd::sim::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

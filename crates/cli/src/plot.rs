@@ -347,3 +347,75 @@ pub fn write_confusion_png(path: &Path, names: &[String], counts: &[Vec<u64>]) -
     }
     write_png(path, &buf)
 }
+
+/// One bar of [`write_bar_chart`]: a label, a value and an optional interval drawn as a whisker.
+#[derive(Debug, Clone)]
+pub struct Bar {
+    /// The label under the bar.
+    pub label: String,
+    /// The bar's height.
+    pub value: f64,
+    /// A (low, high) whisker, e.g. a Wilson interval.
+    pub interval: Option<(f64, f64)>,
+}
+
+/// Writes a bar chart (one bar per entry, optional whiskers) as a PNG; `y_max` is the top of
+/// the value axis.
+pub fn write_bar_chart(
+    path: &Path,
+    title: &str,
+    y_desc: &str,
+    bars: &[Bar],
+    y_max: f64,
+) -> Result<()> {
+    register_font();
+    let n = bars.len();
+    let mut buf = vec![0u8; (WIDTH * HEIGHT * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        let names: Vec<String> = bars.iter().map(|b| b.label.clone()).collect();
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(60)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5f64..n.max(1) as f64 - 0.5, 0f64..y_max)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(n.max(1))
+            .x_label_formatter(&|x| {
+                let i = x.round();
+                if (x - i).abs() < 1e-6 && i >= 0.0 {
+                    names.get(i as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc(y_desc)
+            .label_style(("sans-serif", 12))
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        for (i, b) in bars.iter().enumerate() {
+            let x = i as f64;
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(x - 0.35, 0.0), (x + 0.35, b.value.min(y_max))],
+                    PALETTE[i % PALETTE.len()].filled(),
+                )))
+                .map_err(|e| anyhow!("{e}"))?;
+            if let Some((lo, hi)) = b.interval {
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(x, lo.max(0.0)), (x, hi.min(y_max))],
+                        BLACK.stroke_width(2),
+                    )))
+                    .map_err(|e| anyhow!("{e}"))?;
+            }
+        }
+        root.present().map_err(|e| anyhow!("{e}"))?;
+    }
+    write_png(path, &buf)
+}

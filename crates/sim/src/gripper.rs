@@ -557,6 +557,16 @@ impl Gripper {
         out
     }
 
+    /// The colliders of the palm and the two fingers, in [`Gripper::touches`]' order (for
+    /// queries inside the crate).
+    pub(crate) fn part_colliders(&self) -> [(GripperPart, ColliderHandle); 3] {
+        [
+            (GripperPart::Palm, self.palm_collider),
+            (GripperPart::Finger0, self.fingers[0].collider),
+            (GripperPart::Finger1, self.fingers[1].collider),
+        ]
+    }
+
     /// The gap and both fingers' contacts with `object` now.
     pub fn grip_reading(
         &self,

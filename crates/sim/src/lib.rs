@@ -1,5 +1,6 @@
 //! Tabletop simulation: a kinematic arm and a parallel-jaw gripper that recognise, grasp and place
-//! objects. Built so far: the arm, the physics world and the gripper.
+//! objects: the arm, the physics world, the gripper, the cameras and perception, grasp sources,
+//! one honestly judged grasp attempt, the reference scenarios and runs with their results.
 //!
 //! - [`arm`]: the kinematic model of a UR-class arm ([`ArmModel::ur5e`], [`ArmModel::ur5_cb3`]),
 //!   forward kinematics of every link and the tool, the geometric Jacobian.
@@ -14,6 +15,19 @@
 //!   opening commands ramp, the gap is read from body poses, contacts per finger.
 //! - [`robot`]: the arm's links as kinematic bodies posed by forward kinematics, the gripper at
 //!   the tool frame, trajectories followed in sim time with optional stop-on-contact.
+//! - [`camera`]: RGB-D frames of the world with the pointcloud crate's renderer — the
+//!   reference overview camera and a per-object close-up at the dataset's grasp-camera scale;
+//!   every constant in [`camera::CameraConfig`].
+//! - [`perception`]: segmentation of the overview, one object-centred crop per object, crop
+//!   grasps back to top-down grasps in the world.
+//! - [`source`]: the [`source::GraspSource`] trait and the `analytic` and `random` sources.
+//! - [`attempt`]: one attempt (approach, guarded descent, close, lift, judge, carry, release,
+//!   judge) with strict and contact-only success and a failure reason.
+//! - [`scenario`]: isolated, packed and pile tables.
+//! - [`shapes`]: objects' colliders — the mesh's convex hull (default) or a convex
+//!   decomposition that keeps openings and handles.
+//! - [`run`]: rounds of a scenario, `results.json` (rates with Wilson intervals, per category,
+//!   per failure reason) in a run directory.
 //!
 //! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
 //! teleported. Physics is single-threaded and deterministic: same inputs, same bits.
@@ -59,9 +73,16 @@
 #![warn(missing_docs)]
 
 pub mod arm;
+pub mod attempt;
+pub mod camera;
 pub mod gripper;
 pub mod ik;
+pub mod perception;
 pub mod robot;
+pub mod run;
+pub mod scenario;
+pub mod shapes;
+pub mod source;
 pub mod trajectory;
 pub mod world;
 

@@ -42,7 +42,7 @@ use rand::RngExt;
 use rapier3d::prelude::{
     CoefficientCombineRule, ColliderBuilder, ColliderHandle, FrictionModel, Group,
     InteractionGroups, InteractionTestMode, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
-    SpringCoefficients,
+    SharedShape, SpringCoefficients,
 };
 use serde::{Deserialize, Serialize};
 
@@ -707,6 +707,20 @@ impl World {
         c
     }
 
+    /// Removes a box added with [`World::add_fixed_box`] (temporary scenery, such as the walls a
+    /// pile is dropped into).
+    pub(crate) fn remove_fixed_box(&mut self, collider: ColliderHandle) {
+        if let Some(body) = self
+            .physics
+            .colliders
+            .get(collider)
+            .and_then(|c| c.parent())
+        {
+            self.physics.remove_body_with_colliders(body, true);
+        }
+        self.scenery.retain(|c| *c != collider);
+    }
+
     /// The config.
     pub fn config(&self) -> &WorldConfig {
         &self.config
@@ -799,6 +813,93 @@ impl World {
         let mass_kg =
             (volume * material.density_kg_m3).clamp(material.min_mass_kg, material.max_mass_kg);
         let collider = builder
+            .mass(mass_kg)
+            .friction(material.friction)
+            .friction_combine_rule(CoefficientCombineRule::Multiply)
+            .restitution(material.restitution)
+            .collision_groups(object_groups());
+        let body = RigidBodyBuilder::dynamic()
+            .pose(pose)
+            .angular_damping(material.angular_damping)
+            .can_sleep(self.config.allow_sleep);
+        let (body, collider) = self.physics.insert(body, collider);
+        let handle = ObjectHandle(self.objects.len() as u32);
+        self.objects.push(Some(ObjectEntry {
+            name: name.to_string(),
+            mesh: mesh.clone(),
+            body,
+            collider,
+        }));
+        Ok(handle)
+    }
+
+    /// Spawns `mesh` as a dynamic body whose collider is the compound of the convex hulls of
+    /// `parts` (point sets in the object frame, such as a convex decomposition of the mesh)
+    /// instead of the mesh's single hull, so that hollow and concave objects keep their
+    /// openings. The checks (hull of the whole mesh, size against the table), the face thinning
+    /// and the material rules are [`World::spawn_object_with`]'s; the mass is the parts' total
+    /// volume times the density, clamped. Parts too small or flat to have a hull are skipped.
+    pub fn spawn_object_parts(
+        &mut self,
+        name: &str,
+        mesh: &Mesh,
+        parts: &[Vec<[f32; 3]>],
+        world_from_object: &Pose,
+        material: &ObjectMaterial,
+    ) -> Result<ObjectHandle, WorldError> {
+        material.validate("material.")?;
+        let points = hull_points(name, mesh)?;
+        let (lo, hi) = bounds(&points);
+        let extent_m = (0..3).map(|k| hi[k] - lo[k]).fold(0.0_f32, f32::max);
+        let limit_m = self.config.table.size_m[0].min(self.config.table.size_m[1]);
+        if extent_m > limit_m {
+            return Err(WorldError::ObjectTooLarge {
+                object: name.to_string(),
+                extent_m,
+                limit_m,
+            });
+        }
+        let pose = pose_to_rapier(world_from_object).ok_or_else(|| WorldError::NonFinitePose {
+            what: format!("object `{name}`"),
+        })?;
+        let max_face = self.config.max_face_vertices as usize;
+        let mut shapes = Vec::with_capacity(parts.len());
+        let mut volume = 0.0f32;
+        for part in parts {
+            let pts: Vec<RVec> = part.iter().map(|p| RVec::from_array(*p)).collect();
+            if pts.len() < 4 || !pts.iter().all(|p| p.is_finite()) {
+                continue;
+            }
+            let Some(mut shape) = SharedShape::convex_hull(&pts) else {
+                continue;
+            };
+            for _ in 0..3 {
+                let Some(kept) = shape
+                    .as_convex_polyhedron()
+                    .and_then(|h| thin_big_faces(h, max_face))
+                else {
+                    break;
+                };
+                match SharedShape::convex_hull(&kept) {
+                    Some(thinner) => shape = thinner,
+                    None => break,
+                }
+            }
+            let v = shape.mass_properties(1.0).mass();
+            if v.is_finite() && v > 1e-9 {
+                volume += v;
+                shapes.push((RPose::IDENTITY, shape));
+            }
+        }
+        if shapes.is_empty() {
+            return Err(WorldError::Hull {
+                object: name.to_string(),
+                problem: HullProblem::Failed,
+            });
+        }
+        let mass_kg =
+            (volume * material.density_kg_m3).clamp(material.min_mass_kg, material.max_mass_kg);
+        let collider = ColliderBuilder::new(SharedShape::compound(shapes))
             .mass(mass_kg)
             .friction(material.friction)
             .friction_combine_rule(CoefficientCombineRule::Multiply)
@@ -941,13 +1042,27 @@ impl World {
         Ok(&self.entry(handle)?.mesh)
     }
 
-    /// The vertices of the object's collider (its simplified convex hull) in the object frame
-    /// (m): the shape the physics uses, within a few millimetres of the mesh.
+    /// The vertices of the object's collider (its simplified convex hull, or every part's of a
+    /// compound collider) in the object frame (m): the shape the physics uses, within a few
+    /// millimetres of the mesh.
     pub fn object_hull_points_m(&self, handle: ObjectHandle) -> Result<Vec<[f32; 3]>, WorldError> {
         let entry = self.entry(handle)?;
         let collider = &self.physics.colliders[entry.collider];
-        Ok(collider
-            .shape()
+        let shape = collider.shape();
+        if let Some(compound) = shape.as_compound() {
+            // The parts of a compound collider (World::spawn_object_parts), in the object frame.
+            return Ok(compound
+                .shapes()
+                .iter()
+                .filter_map(|(pose, part)| part.as_convex_polyhedron().map(|h| (pose, h)))
+                .flat_map(|(pose, hull)| {
+                    hull.points()
+                        .iter()
+                        .map(|p| pose.transform_point(*p).to_array())
+                })
+                .collect());
+        }
+        Ok(shape
             .as_convex_polyhedron()
             .map(|hull| hull.points().iter().map(|p| p.to_array()).collect())
             .unwrap_or_default())

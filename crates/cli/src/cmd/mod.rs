@@ -5,4 +5,5 @@ pub mod features;
 pub mod gen_dataset;
 pub mod info;
 pub mod merge;
+pub mod sim;
 pub mod train;

@@ -1,0 +1,978 @@
+//! One grasp attempt, honestly judged: a top-down grasp from a grasp source becomes arm motions,
+//! and the outcome is read from the physics afterwards.
+//!
+//! The attempt ([`execute`]), after [`plan_grasp`] turned a [`WorldGrasp`] into a [`GraspPlan`]:
+//! 1. IK to a pre-grasp pose above the grasp at a safe height (clear of everything the close-up
+//!    saw), a timed joint move there, the gripper opening meanwhile to the predicted opening plus
+//!    a margin (never beyond the stroke);
+//! 2. a straight-line descent with stop-on-contact (a guarded move) to the grasp height: the
+//!    fingertips [`AttemptConfig::grasp_depth_m`] below the surface at the grasp centre, but
+//!    above the table and above whatever the depth image shows under the open fingers' lanes
+//!    and the palm;
+//! 3. close until the pads stall (or meet), squeeze for [`AttemptConfig::squeeze_s`];
+//! 4. lift [`AttemptConfig::lift_height_m`] straight up, then hold [`AttemptConfig::hold_s`] —
+//!    and **judge the grasp**;
+//! 5. carry to the target basket at [`AttemptConfig::carry_height_m`] (≤ ~1.03 m: the arm's
+//!    reach there), lower to just above the basket floor, open, back off, let the scene settle
+//!    — and **judge the placement**.
+//!
+//! **Grasp success** (issue 14; stricter than the paper): after the lift the object's centre of
+//! mass is at least [`AttemptConfig::success_rise_m`] above where it rested, stays there
+//! through the hold, both fingers push on it at the end, the fingers are not closed on nothing,
+//! and the gap is at least the object's width between the pads minus
+//! [`AttemptConfig::width_tolerance_m`] (the width is the gap plus how deep the pads are sunk
+//! into the object's collider, found by ray casts from the pads' outer faces: a pad sunk more
+//! than that holds the object by a physics artefact, not by friction). The paper's **contact-only** criterion — exactly
+//! one object touches the pads after the lift — is recorded beside it. **Placement success**:
+//! the object's centre of mass ends at rest inside the target basket
+//! ([`crate::world::BasketConfig::inner_bounds_m`]).
+//!
+//! Every failed attempt gets one [`FailureReason`]. Nothing is ever attached, welded or
+//! teleported while the robot acts.
+//!
+//! Wall-clock times are kept apart from everything else ([`WallTimes`]), so that the rest of a
+//! record is the same, bit for bit, for the same seed.
+
+use std::time::{Duration, Instant};
+
+use lgdm_pointcloud::grasp::decode::GraspDecodeParams;
+use lgdm_pointcloud::math::transform_point;
+use nalgebra::{Point3, Vector3};
+use rapier3d::parry::query::Ray;
+use serde::{Deserialize, Serialize};
+
+use crate::gripper::{Contactee, GripperPart};
+use crate::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp};
+use crate::perception::{ObjectView, WorldGrasp};
+use crate::robot::{Robot, RobotConfig, RobotError};
+use crate::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
+use crate::world::{ObjectHandle, RVec, World, WorldError};
+
+/// How an attempt moves and how it is judged. Defaults are stated per field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AttemptConfig {
+    /// The fingertips reach at least this high above the table before descending: the
+    /// pre-grasp height (m; default 0.25), raised to clear the tallest point the close-up saw
+    /// by [`AttemptConfig::approach_clearance_m`].
+    pub approach_height_m: f64,
+    /// Clearance of the fingertips over the tallest visible point at the pre-grasp (m;
+    /// default 0.05).
+    pub approach_clearance_m: f64,
+    /// The straight descent (default 0.15 m/s, 0.5 m/s², 1 cm IK waypoints).
+    pub descent: LinearMove,
+    /// The straight lift and the lowering into the basket (default 0.15 m/s, 0.5 m/s², 1 cm
+    /// IK waypoints).
+    pub lift: LinearMove,
+    /// Added to the predicted opening before descending (m; default 0.02: 1 cm per side); the
+    /// commanded opening never exceeds the stroke.
+    pub opening_margin_m: f64,
+    /// Fingertips go this far below the grasp's surface point (m; default 0.04 of the 0.05 m
+    /// pads).
+    pub grasp_depth_m: f64,
+    /// Fingertips stay this far above the table (m; default 0.005).
+    pub min_tip_height_m: f64,
+    /// Fingertips stay this far above the highest surface the depth image shows in the open
+    /// fingers' lanes (m; default 0.003).
+    pub lane_clearance_m: f64,
+    /// The palm's underside stays this far above the highest surface under it (m; default
+    /// 0.005).
+    pub palm_clearance_m: f64,
+    /// Give up closing after this long (s; default 2).
+    pub close_timeout_s: f64,
+    /// Squeeze after the pads stalled before lifting (s; default 0.2).
+    pub squeeze_s: f64,
+    /// The lift (m; default 0.2).
+    pub lift_height_m: f64,
+    /// Grasp success: the object's centre of mass rose at least this much (m; default 0.10).
+    pub success_rise_m: f32,
+    /// …and stayed that high for this long after the lift (s; default 0.5).
+    pub hold_s: f64,
+    /// …with a gap no narrower than the object's width between the pads minus this (m;
+    /// default 0.005).
+    pub width_tolerance_m: f32,
+    /// A guarded descent that stops this far above the planned grasp height counts as a
+    /// collision on approach when the grasp then fails (m; default 0.01).
+    pub early_stop_m: f64,
+    /// Height of the tool over the baskets while carrying (m; default 1.03: the arm reaches
+    /// the baskets up to ~1.035 m).
+    pub carry_height_m: f64,
+    /// Index of the target basket in the world's baskets (default 0, the reference tray at
+    /// (0.7, 0, 0.685)).
+    pub target_basket: usize,
+    /// Release with the object's lowest point this far above the basket floor (m; default
+    /// 0.03).
+    pub release_clearance_m: f64,
+    /// Wait after the fingers opened before backing off (s; default 0.3).
+    pub release_wait_s: f64,
+    /// How crop grasps are placed in the world (default: train_ae's decoding; the median depth
+    /// of a 5×5 window).
+    pub decode: GraspDecodeParams,
+}
+
+impl Default for AttemptConfig {
+    fn default() -> Self {
+        let moves = LinearMove {
+            speed_m_s: 0.15,
+            accel_m_s2: 0.5,
+            waypoint_spacing_m: 0.01,
+            ..LinearMove::default()
+        };
+        Self {
+            approach_height_m: 0.25,
+            approach_clearance_m: 0.05,
+            descent: moves.clone(),
+            lift: moves,
+            opening_margin_m: 0.02,
+            grasp_depth_m: 0.04,
+            min_tip_height_m: 0.005,
+            lane_clearance_m: 0.003,
+            palm_clearance_m: 0.005,
+            close_timeout_s: 2.0,
+            squeeze_s: 0.2,
+            lift_height_m: 0.2,
+            success_rise_m: 0.10,
+            hold_s: 0.5,
+            width_tolerance_m: 0.005,
+            early_stop_m: 0.01,
+            carry_height_m: 1.03,
+            target_basket: 0,
+            release_clearance_m: 0.03,
+            release_wait_s: 0.3,
+            decode: GraspDecodeParams::default(),
+        }
+    }
+}
+
+impl AttemptConfig {
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), AttemptError> {
+        let bad = |field: &'static str, value: f64| {
+            Err(AttemptError::InvalidConfig {
+                field,
+                reason: format!("{value} must be positive and finite"),
+            })
+        };
+        for (field, value) in [
+            ("approach_height_m", self.approach_height_m),
+            ("close_timeout_s", self.close_timeout_s),
+            ("lift_height_m", self.lift_height_m),
+            ("success_rise_m", f64::from(self.success_rise_m)),
+            ("carry_height_m", self.carry_height_m),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return bad(field, value);
+            }
+        }
+        for (field, value) in [
+            ("approach_clearance_m", self.approach_clearance_m),
+            ("opening_margin_m", self.opening_margin_m),
+            ("grasp_depth_m", self.grasp_depth_m),
+            ("min_tip_height_m", self.min_tip_height_m),
+            ("lane_clearance_m", self.lane_clearance_m),
+            ("palm_clearance_m", self.palm_clearance_m),
+            ("squeeze_s", self.squeeze_s),
+            ("hold_s", self.hold_s),
+            ("width_tolerance_m", f64::from(self.width_tolerance_m)),
+            ("early_stop_m", self.early_stop_m),
+            ("release_clearance_m", self.release_clearance_m),
+            ("release_wait_s", self.release_wait_s),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(AttemptError::InvalidConfig {
+                    field,
+                    reason: format!("{value} must be non-negative and finite"),
+                });
+            }
+        }
+        self.descent
+            .validate()
+            .map_err(|e| AttemptError::InvalidConfig {
+                field: "descent",
+                reason: e.to_string(),
+            })?;
+        self.lift
+            .validate()
+            .map_err(|e| AttemptError::InvalidConfig {
+                field: "lift",
+                reason: e.to_string(),
+            })?;
+        self.decode
+            .validate()
+            .map_err(|e| AttemptError::InvalidConfig {
+                field: "decode",
+                reason: e.to_string(),
+            })?;
+        Ok(())
+    }
+}
+
+/// Why an attempt failed (one per failed attempt).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureReason {
+    /// The source proposed no grasp that could be placed in the world.
+    NoGraspFound,
+    /// The arm cannot reach the pre-grasp, the grasp or the basket.
+    Unreachable,
+    /// The arm or the fingers hit something on the way down and the grasp then failed.
+    CollisionOnApproach,
+    /// The fingers closed without pinching the object.
+    Missed,
+    /// The object was pinched but did not rise with the gripper or fell during the hold.
+    SlippedDuringLift,
+    /// The object was lifted but lost on the way to the basket.
+    SlippedDuringCarry,
+    /// The object was released but did not come to rest inside the basket.
+    DroppedOutside,
+}
+
+impl FailureReason {
+    /// Every reason, in a fixed order.
+    pub const ALL: [FailureReason; 7] = [
+        Self::NoGraspFound,
+        Self::Unreachable,
+        Self::CollisionOnApproach,
+        Self::Missed,
+        Self::SlippedDuringLift,
+        Self::SlippedDuringCarry,
+        Self::DroppedOutside,
+    ];
+
+    /// The snake_case name (as in results.json).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::NoGraspFound => "no_grasp_found",
+            Self::Unreachable => "unreachable",
+            Self::CollisionOnApproach => "collision_on_approach",
+            Self::Missed => "missed",
+            Self::SlippedDuringLift => "slipped_during_lift",
+            Self::SlippedDuringCarry => "slipped_during_carry",
+            Self::DroppedOutside => "dropped_outside",
+        }
+    }
+}
+
+impl std::fmt::Display for FailureReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Errors that abort an attempt (not failures of the grasp: those are [`FailureReason`]s).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AttemptError {
+    /// A bad [`AttemptConfig`] field.
+    #[error("attempt config: {field}: {reason}")]
+    InvalidConfig {
+        /// The field.
+        field: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The world failed (a NaN state, an unknown object).
+    #[error(transparent)]
+    World(#[from] WorldError),
+    /// The robot failed (a command outside the limits).
+    #[error(transparent)]
+    Robot(#[from] RobotError),
+    /// The IK solver could not be built.
+    #[error(transparent)]
+    Ik(#[from] IkError),
+}
+
+/// Wall-clock seconds an attempt spent, by kind of work. Not deterministic: kept apart.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct WallTimes {
+    /// Everything.
+    pub total_s: f64,
+    /// Rendering camera frames.
+    pub render_s: f64,
+    /// Segmentation, crops, grasp placement.
+    pub perception_s: f64,
+    /// The grasp source.
+    pub source_s: f64,
+    /// IK and trajectory planning.
+    pub planning_s: f64,
+    /// Physics steps (robot motions, settling).
+    pub physics_s: f64,
+}
+
+impl WallTimes {
+    /// Adds `other`, field by field.
+    pub fn add(&mut self, other: &WallTimes) {
+        self.total_s += other.total_s;
+        self.render_s += other.render_s;
+        self.perception_s += other.perception_s;
+        self.source_s += other.source_s;
+        self.planning_s += other.planning_s;
+        self.physics_s += other.physics_s;
+    }
+}
+
+/// What kind of work a timed span is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Work {
+    /// Rendering.
+    Render,
+    /// Segmentation, crops, grasp placement.
+    Perception,
+    /// The grasp source.
+    Source,
+    /// IK and planning.
+    Planning,
+    /// Physics.
+    Physics,
+}
+
+impl WallTimes {
+    /// Runs `f`, adding its wall time to `work`'s field.
+    pub fn time<T>(&mut self, work: Work, f: impl FnOnce() -> T) -> T {
+        let start = Instant::now();
+        let out = f();
+        let d = start.elapsed().as_secs_f64();
+        match work {
+            Work::Render => self.render_s += d,
+            Work::Perception => self.perception_s += d,
+            Work::Source => self.source_s += d,
+            Work::Planning => self.planning_s += d,
+            Work::Physics => self.physics_s += d,
+        }
+        out
+    }
+
+    /// Sets `total_s` from a start instant.
+    pub fn finish(&mut self, start: Instant) {
+        self.total_s = Duration::as_secs_f64(&start.elapsed());
+    }
+}
+
+/// The work cell: the world, the robot in it and its IK solver.
+#[derive(Debug)]
+pub struct Cell {
+    /// The physics world.
+    pub world: World,
+    /// The robot.
+    pub robot: Robot,
+    /// IK for the robot's arm (reused between moves).
+    pub ik: IkSolver,
+}
+
+impl Cell {
+    /// Adds the robot (at its home posture, gripper fully open) to `world`.
+    pub fn new(mut world: World, config: RobotConfig) -> Result<Self, AttemptError> {
+        let home = config.arm.home_rad;
+        let stroke = config.gripper.stroke_m;
+        let robot = Robot::new(&mut world, config, &home, stroke)?;
+        let ik = IkSolver::new(robot.arm().clone(), IkConfig::default())?;
+        Ok(Self { world, robot, ik })
+    }
+
+    /// Height of the table top (m).
+    pub fn table_top_m(&self) -> f64 {
+        f64::from(self.world.config().table.top_z_m())
+    }
+}
+
+/// A grasp turned into tool targets.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspPlan {
+    /// The grasp it came from.
+    pub grasp: WorldGrasp,
+    /// Tool centre (between the pads) at the grasp (m, world).
+    pub tcp_m: [f64; 3],
+    /// Tool z at the pre-grasp (m).
+    pub pregrasp_z_m: f64,
+    /// Commanded opening (m): predicted + margin, at most the stroke.
+    pub opening_m: f64,
+    /// Highest surface in the open fingers' lanes above the table (m; from the depth image).
+    pub lane_height_m: f64,
+    /// Highest surface under the palm above the table (m).
+    pub palm_height_m: f64,
+}
+
+/// Plans the tool targets of `grasp` seen in `view`: the commanded opening, the fingertip height
+/// (see [`AttemptConfig`]) from the close-up's depth, the pre-grasp height.
+pub fn plan_grasp(
+    cell: &Cell,
+    view: &ObjectView,
+    grasp: &WorldGrasp,
+    config: &AttemptConfig,
+) -> GraspPlan {
+    let g = cell.robot.gripper().config();
+    let stroke = f64::from(g.stroke_m);
+    let opening = (grasp.opening_m + config.opening_margin_m).clamp(0.0, stroke);
+    let top = cell.table_top_m();
+    let thickness = f64::from(g.finger_thickness_m);
+    let half_width = 0.5 * f64::from(g.finger_width_m);
+    let palm_half_len = f64::from(g.palm_half_length_m());
+    let palm_half_width = f64::from(g.palm_half_width_m);
+    let finger_len = f64::from(g.finger_length_m);
+    let (s, c) = grasp.yaw_rad.sin_cos();
+    let [gx, gy, gz] = grasp.position_m;
+    // Heights (above the table) of every close-up pixel near the grasp, sorted into the open
+    // fingers' lanes (2 mm wider than the pads) and the palm's footprint.
+    let k = view.shot.camera.intrinsics;
+    let world_from_camera = view.shot.camera.world_from_camera;
+    let camera_from_world = world_from_camera.inverse();
+    let centre = transform_point(&camera_from_world, grasp.position_m.map(|v| v as f32));
+    let reach_m = (palm_half_len.max(0.5 * opening + thickness) + 0.01).hypot(palm_half_width);
+    let (mut lane, mut palm, mut tallest) = (0.0f64, 0.0f64, 0.0f64);
+    let depth = &view.shot.frame.depth_m;
+    let (w, h) = (k.width as i64, k.height as i64);
+    for d in depth.iter().filter(|d| d.is_finite() && **d > 0.0) {
+        tallest = tallest.max(f64::from(view.crop.table_depth_m - d));
+    }
+    if let Some([u0, v0]) = k.project(centre) {
+        let r_px = (reach_m * f64::from(k.fx) / f64::from(centre[2]).max(0.05)).ceil() as i64 + 2;
+        let (u0, v0) = (u0.round() as i64, v0.round() as i64);
+        for v in (v0 - r_px).max(0)..=(v0 + r_px).min(h - 1) {
+            for u in (u0 - r_px).max(0)..=(u0 + r_px).min(w - 1) {
+                let z = depth[(v * w + u) as usize];
+                if !(z.is_finite() && z > 0.0) {
+                    continue;
+                }
+                let p = transform_point(&world_from_camera, k.unproject(u as f32, v as f32, z));
+                let (dx, dy) = (f64::from(p[0]) - gx, f64::from(p[1]) - gy);
+                let a = dx * c + dy * s;
+                let b = -dx * s + dy * c;
+                let height = f64::from(p[2]) - top;
+                if a.abs() >= 0.5 * opening - 0.001
+                    && a.abs() <= 0.5 * opening + thickness + 0.002
+                    && b.abs() <= half_width + 0.002
+                {
+                    lane = lane.max(height);
+                }
+                if a.abs() <= palm_half_len && b.abs() <= palm_half_width {
+                    palm = palm.max(height);
+                }
+            }
+        }
+    }
+    let surface = gz - top;
+    let tip = (surface - config.grasp_depth_m)
+        .max(config.min_tip_height_m)
+        .max(lane + config.lane_clearance_m)
+        .max(palm + config.palm_clearance_m - finger_len);
+    let tip_from_tcp = f64::from(g.tip_from_tcp_m());
+    let pregrasp_tip = config
+        .approach_height_m
+        .max(tallest + config.approach_clearance_m)
+        .max(tip + 0.02);
+    GraspPlan {
+        grasp: *grasp,
+        tcp_m: [gx, gy, top + tip + tip_from_tcp],
+        pregrasp_z_m: top + pregrasp_tip + tip_from_tcp,
+        opening_m: opening,
+        lane_height_m: lane,
+        palm_height_m: palm,
+    }
+}
+
+/// What happened in an attempt (deterministic; no wall times).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Execution {
+    /// Grasp success by the strict criterion.
+    pub grasp_success: bool,
+    /// The paper's criterion: exactly one object touches the pads after the lift.
+    pub contact_only_success: bool,
+    /// The object came to rest inside the target basket.
+    pub placement_success: bool,
+    /// Why it failed, if it did (a grasp success that was not placed also has a reason).
+    pub reason: Option<FailureReason>,
+    /// The object the fingers pinched after closing, if exactly one.
+    #[serde(skip)]
+    pub pinched_object: Option<ObjectHandle>,
+    /// Measurements along the way.
+    pub measured: Measurements,
+}
+
+/// Numbers measured during an attempt (m unless named otherwise).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Measurements {
+    /// The guarded descent stopped on a contact.
+    pub descent_stopped: bool,
+    /// How far above the planned grasp height it stopped (0 when it did not).
+    pub descent_stop_above_plan_m: f64,
+    /// An arm link pushed an object during the approach or the descent.
+    pub arm_collision: bool,
+    /// Gap between the pads after closing.
+    pub gap_after_close_m: Option<f32>,
+    /// Both fingers pushed on one object after closing.
+    pub pinched_after_close: bool,
+    /// Rise of the judged object's centre of mass at the end of the lift.
+    pub rise_after_lift_m: Option<f32>,
+    /// Lowest rise during the hold.
+    pub min_rise_during_hold_m: Option<f32>,
+    /// Gap after the hold.
+    pub gap_after_hold_m: Option<f32>,
+    /// The object's widest chord between the pads (collider, along the closing axis).
+    pub width_between_pads_m: Option<f32>,
+    /// Objects touching the pads after the lift (the paper's check needs exactly one).
+    pub objects_touching_after_lift: usize,
+    /// The object's centre of mass after the placement settled (m, world).
+    pub placed_at_m: Option<[f32; 3]>,
+    /// Its speed (m/s) and spin (rad/s) then.
+    pub placed_motion: Option<[f32; 2]>,
+    /// Its lowest collider point then (m, world).
+    pub placed_lowest_z_m: Option<f32>,
+}
+
+/// Steps a trajectory, guarded or not, recording arm-object contacts.
+struct Motion {
+    stopped_by_contact: bool,
+    arm_collision: bool,
+}
+
+fn follow(
+    cell: &mut Cell,
+    trajectory: &JointTrajectory,
+    guarded: bool,
+    wall: &mut WallTimes,
+) -> Result<Motion, AttemptError> {
+    wall.time(Work::Physics, || {
+        let dt = f64::from(cell.world.dt_s());
+        let duration = trajectory.duration_s();
+        let steps = (duration / dt).ceil().max(0.0) as u32;
+        let mut arm_collision = false;
+        for k in 1..=steps {
+            let t = (f64::from(k) * dt).min(duration);
+            cell.robot.step_to(&mut cell.world, trajectory, t)?;
+            arm_collision |= !cell.robot.arm_touches(&cell.world).is_empty();
+            if guarded && touches_for_real(cell) {
+                return Ok(Motion {
+                    stopped_by_contact: true,
+                    arm_collision,
+                });
+            }
+        }
+        Ok(Motion {
+            stopped_by_contact: false,
+            arm_collision,
+        })
+    })
+}
+
+fn hold(cell: &mut Cell, seconds: f64, wall: &mut WallTimes) -> Result<(), AttemptError> {
+    let steps = (seconds / f64::from(cell.world.dt_s())).round() as u32;
+    wall.time(Work::Physics, || cell.robot.hold(&mut cell.world, steps))?;
+    Ok(())
+}
+
+/// Steps until the opening command settled (or `timeout_s`).
+fn settle_opening(
+    cell: &mut Cell,
+    timeout_s: f64,
+    wall: &mut WallTimes,
+) -> Result<(), AttemptError> {
+    let max = (timeout_s / f64::from(cell.world.dt_s())).ceil() as u32;
+    wall.time(Work::Physics, || {
+        for _ in 0..max {
+            if cell.robot.gripper().opening_settled() {
+                break;
+            }
+            cell.robot.step(&mut cell.world)?;
+        }
+        Ok::<_, AttemptError>(())
+    })
+}
+
+/// A joint move to a top-down tool pose, or `None` when IK or the trajectory fails.
+fn plan_joint_move(
+    cell: &mut Cell,
+    position_m: [f64; 3],
+    yaw_rad: f64,
+    wall: &mut WallTimes,
+) -> Option<JointTrajectory> {
+    let q0 = cell.robot.joints_rad();
+    wall.time(Work::Planning, || {
+        let target = IkTarget::TopDown(TopDownGrasp::new(position_m, yaw_rad));
+        let q = cell.ik.solve(&target, &q0).ok()?.joints_rad;
+        JointTrajectory::point_to_point(cell.robot.arm(), &q0, &q).ok()
+    })
+}
+
+/// A straight tool move to the current orientation at `position_m`.
+fn plan_straight(
+    cell: &mut Cell,
+    position_m: [f64; 3],
+    params: &LinearMove,
+    wall: &mut WallTimes,
+) -> Result<JointTrajectory, MotionError> {
+    let q0 = cell.robot.joints_rad();
+    let mut goal = cell.robot.world_from_tool();
+    goal.translation.vector = Vector3::from(position_m);
+    wall.time(Work::Planning, || {
+        plan_linear_move(&mut cell.ik, &q0, &goal, params)
+    })
+}
+
+/// Largest true distance (m) between a gripper part and what it pushes on for the push to count
+/// as a touch in a guarded move.
+const TOUCH_DISTANCE_M: f32 = 0.001;
+
+/// Whether the palm or a finger pushes on anything now — on something really within
+/// [`TOUCH_DISTANCE_M`]. rapier's polyhedron–cuboid manifolds can hold a ghost point: a
+/// fingertip passing 4 mm beside a can's shoulder got a contact 0.5 mm "below" its tip plane
+/// with a vertical normal and a 12 N push, so the descent stopped 3 cm early. Each pushing pair
+/// is therefore checked with parry's exact distance between the two colliders.
+fn touches_for_real(cell: &Cell) -> bool {
+    let world = &cell.world;
+    let physics = &world.physics;
+    for (_, part) in cell.robot.gripper().part_colliders() {
+        for pair in physics.narrow_phase.contact_pairs_with(part) {
+            if !(pair.has_any_active_contact() && pair.total_impulse_magnitude() > 0.0) {
+                continue;
+            }
+            let (Some(a), Some(b)) = (
+                physics.colliders.get(pair.collider1),
+                physics.colliders.get(pair.collider2),
+            ) else {
+                continue;
+            };
+            let close =
+                rapier3d::parry::query::distance(a.position(), a.shape(), b.position(), b.shape())
+                    .map_or(true, |d| d.distance <= TOUCH_DISTANCE_M);
+            if close {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Objects both of whose fingers push on them now, sorted.
+fn pinched_objects(cell: &Cell) -> Vec<ObjectHandle> {
+    let touches = cell.robot.gripper().touches(&cell.world);
+    let mut by_finger: [Vec<ObjectHandle>; 2] = [Vec::new(), Vec::new()];
+    for t in &touches {
+        if let Contactee::Object(h) = t.other {
+            match t.part {
+                GripperPart::Finger0 => by_finger[0].push(h),
+                GripperPart::Finger1 => by_finger[1].push(h),
+                GripperPart::Palm => {}
+            }
+        }
+    }
+    let mut out: Vec<ObjectHandle> = by_finger[0]
+        .iter()
+        .copied()
+        .filter(|h| by_finger[1].contains(h))
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// Objects either finger (or the palm) touches now, sorted.
+fn touching_objects(cell: &Cell) -> Vec<ObjectHandle> {
+    let mut out: Vec<ObjectHandle> = cell
+        .robot
+        .gripper()
+        .touches(&cell.world)
+        .iter()
+        .filter(|t| t.part != GripperPart::Palm)
+        .filter_map(|t| match t.other {
+            Contactee::Object(h) => Some(h),
+            Contactee::Scenery => None,
+        })
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// The object's width between the pads: the gap plus how deep each pad is sunk into the
+/// object's collider, measured by ray casts from each pad's outer face toward the other pad at
+/// 3 × 3 points of the pad area (a pad whose inner face rests on the surface is sunk 0). `None`
+/// when no ray meets the object between the pads' outer faces. Works for compound colliders
+/// (a rim pinched between the pads is as wide as the rim, not as the whole vessel).
+pub fn width_between_pads_m(
+    world: &World,
+    gripper: &crate::gripper::Gripper,
+    object: ObjectHandle,
+) -> Result<Option<f32>, WorldError> {
+    let collider = &world.physics.colliders[world.object_collider(object)?];
+    let shape = collider.shape();
+    let pose = collider.position();
+    let g = gripper.config();
+    let palm = gripper.palm_pose(world);
+    let [f0, f1] = gripper.finger_positions_in_palm_m(world);
+    let t = g.finger_thickness_m;
+    let gap = gripper.finger_gap_m(world);
+    let x_axis = palm.rotation * Vector3::x();
+    let dir = RVec::new(x_axis.x as f32, x_axis.y as f32, x_axis.z as f32);
+    let reach = t + gap.max(0.0);
+    let mut sunk = [None::<f32>; 2];
+    for fy in [-0.45f64, 0.0, 0.45] {
+        for fz in [-0.45f64, 0.0, 0.45] {
+            let (y, z) = (
+                fy * f64::from(g.finger_width_m),
+                fz * f64::from(g.finger_length_m),
+            );
+            for (side, (outer_x, sign)) in [
+                (f64::from(f0[0] - 0.5 * t), 1.0f32),
+                (f64::from(f1[0] + 0.5 * t), -1.0f32),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let p = palm * Point3::new(outer_x, y, z);
+                let origin = RVec::new(p.x as f32, p.y as f32, p.z as f32);
+                if let Some(hit) = shape.cast_ray(pose, &Ray::new(origin, dir * sign), reach, true)
+                {
+                    let depth = (t - hit).max(0.0);
+                    sunk[side] = Some(sunk[side].map_or(depth, |d: f32| d.max(depth)));
+                }
+            }
+        }
+    }
+    Ok(match sunk {
+        [None, None] => None,
+        [a, b] => Some(gap + a.unwrap_or(0.0) + b.unwrap_or(0.0)),
+    })
+}
+
+/// Runs one grasp attempt from the current state of `cell` (the arm parked, the gripper open):
+/// approach, descend, close, lift, judge, carry, release, judge. `target` is the object the
+/// grasp aimed at (for judging when nothing was pinched); `rest_com_z` gives every live object's
+/// resting centre-of-mass height at the start. The arm is left where the attempt ended; see
+/// [`park`].
+pub fn execute(
+    cell: &mut Cell,
+    plan: &GraspPlan,
+    target: Option<ObjectHandle>,
+    config: &AttemptConfig,
+    wall: &mut WallTimes,
+) -> Result<Execution, AttemptError> {
+    let mut out = Execution::default();
+    let rest: Vec<(ObjectHandle, f32)> = cell
+        .world
+        .objects()
+        .map(|h| Ok((h, cell.world.object_center_of_mass_m(h)?[2])))
+        .collect::<Result<_, WorldError>>()?;
+    let rest_z = |h: ObjectHandle| rest.iter().find(|(o, _)| *o == h).map(|(_, z)| *z);
+    let yaw = plan.grasp.yaw_rad;
+    let [x, y, z] = plan.tcp_m;
+    let fail = |mut out: Execution, reason| {
+        out.reason = Some(reason);
+        Ok(out)
+    };
+
+    // 1. Pre-grasp: a joint move, opening meanwhile.
+    cell.robot
+        .gripper_mut()
+        .set_opening(plan.opening_m as f32)?;
+    let Some(approach) = plan_joint_move(cell, [x, y, plan.pregrasp_z_m], yaw, wall) else {
+        return fail(out, FailureReason::Unreachable);
+    };
+    let m = follow(cell, &approach, false, wall)?;
+    out.measured.arm_collision |= m.arm_collision;
+    settle_opening(cell, 1.0, wall)?;
+
+    // 2. Guarded straight descent.
+    let Ok(descent) = plan_straight(cell, [x, y, z], &config.descent, wall) else {
+        return fail(out, FailureReason::Unreachable);
+    };
+    let m = follow(cell, &descent, true, wall)?;
+    out.measured.arm_collision |= m.arm_collision;
+    out.measured.descent_stopped = m.stopped_by_contact;
+    let reached_z = cell.robot.world_from_tool().translation.vector.z;
+    out.measured.descent_stop_above_plan_m = if m.stopped_by_contact {
+        (reached_z - z).max(0.0)
+    } else {
+        0.0
+    };
+    let collided =
+        out.measured.arm_collision || out.measured.descent_stop_above_plan_m > config.early_stop_m;
+
+    // 3. Close and squeeze.
+    cell.robot.gripper_mut().set_opening(0.0)?;
+    settle_opening(cell, config.close_timeout_s, wall)?;
+    hold(cell, config.squeeze_s, wall)?;
+    let gap = cell.robot.gripper().finger_gap_m(&cell.world);
+    out.measured.gap_after_close_m = Some(gap);
+    let closed_gap = cell.robot.gripper().config().closed_gap_m;
+    let pinched = pinched_objects(cell);
+    out.measured.pinched_after_close = pinched.len() == 1 && gap >= closed_gap;
+    let judged = if pinched.len() == 1 {
+        Some(pinched[0])
+    } else {
+        pinched.first().copied().or(target)
+    };
+    if out.measured.pinched_after_close {
+        out.pinched_object = judged;
+    }
+
+    // 4. Lift, then hold and judge.
+    let lifted_z = reached_z + config.lift_height_m;
+    let Ok(lift) = plan_straight(cell, [x, y, lifted_z], &config.lift, wall) else {
+        return fail(out, FailureReason::Unreachable);
+    };
+    follow(cell, &lift, false, wall)?;
+    let touching = touching_objects(cell);
+    out.measured.objects_touching_after_lift = touching.len();
+    out.contact_only_success = touching.len() == 1;
+    let Some(object) = judged else {
+        let reason = if collided {
+            FailureReason::CollisionOnApproach
+        } else {
+            FailureReason::Missed
+        };
+        return fail(out, reason);
+    };
+    let rise = |cell: &Cell| -> Result<f32, WorldError> {
+        Ok(cell.world.object_center_of_mass_m(object)?[2] - rest_z(object).unwrap_or(f32::NAN))
+    };
+    out.measured.rise_after_lift_m = Some(rise(cell)?);
+    let hold_steps = (config.hold_s / f64::from(cell.world.dt_s())).round() as u32;
+    let mut min_rise = rise(cell)?;
+    wall.time(Work::Physics, || {
+        for _ in 0..hold_steps {
+            cell.robot.step(&mut cell.world)?;
+            min_rise = min_rise.min(rise(cell)?);
+        }
+        Ok::<_, AttemptError>(())
+    })?;
+    out.measured.min_rise_during_hold_m = Some(min_rise);
+    let reading = cell.robot.gripper().grip_reading(&cell.world, object)?;
+    out.measured.gap_after_hold_m = Some(reading.gap_m);
+    let width = width_between_pads_m(&cell.world, cell.robot.gripper(), object)?;
+    out.measured.width_between_pads_m = width;
+    let wide_enough = width.is_none_or(|w| reading.gap_m >= w - config.width_tolerance_m);
+    out.grasp_success = min_rise >= config.success_rise_m && reading.pinching() && wide_enough;
+    if !out.grasp_success {
+        let reason = if !out.measured.pinched_after_close {
+            if collided {
+                FailureReason::CollisionOnApproach
+            } else {
+                FailureReason::Missed
+            }
+        } else {
+            FailureReason::SlippedDuringLift
+        };
+        return fail(out, reason);
+    }
+
+    // 5. Carry to the basket, lower, release, back off, settle; judge the placement.
+    let Some(basket) = cell
+        .world
+        .config()
+        .baskets
+        .get(config.target_basket)
+        .cloned()
+    else {
+        return Err(AttemptError::InvalidConfig {
+            field: "target_basket",
+            reason: format!(
+                "basket {} of a world with {}",
+                config.target_basket,
+                cell.world.config().baskets.len()
+            ),
+        });
+    };
+    let [bx, by, floor_z] = basket.floor_center_m.map(f64::from);
+    let Some(carry) = plan_joint_move(cell, [bx, by, config.carry_height_m], yaw, wall) else {
+        return fail(out, FailureReason::Unreachable);
+    };
+    follow(cell, &carry, false, wall)?;
+    let still_held = |cell: &Cell| -> Result<bool, WorldError> {
+        Ok(cell
+            .robot
+            .gripper()
+            .grip_reading(&cell.world, object)?
+            .pinching())
+    };
+    if !still_held(cell)? {
+        return fail(out, FailureReason::SlippedDuringCarry);
+    }
+    // Lower until the object's lowest collider point is just above the basket floor.
+    let tcp_z = cell.robot.world_from_tool().translation.vector.z;
+    let pose = cell.world.object_pose(object)?;
+    let lowest = cell
+        .world
+        .object_hull_points_m(object)?
+        .iter()
+        .map(|p| f64::from(transform_point(&pose, *p)[2]))
+        .fold(f64::INFINITY, f64::min);
+    let below = if lowest.is_finite() {
+        tcp_z - lowest
+    } else {
+        0.0
+    };
+    let release_z = (floor_z + below + config.release_clearance_m).min(tcp_z);
+    if release_z < tcp_z - 1e-3
+        && let Ok(lower) = plan_straight(cell, [bx, by, release_z], &config.lift, wall)
+    {
+        follow(cell, &lower, false, wall)?;
+    }
+    if !still_held(cell)? {
+        return fail(out, FailureReason::SlippedDuringCarry);
+    }
+    let stroke = cell.robot.gripper().config().stroke_m;
+    cell.robot.gripper_mut().set_opening(stroke)?;
+    settle_opening(cell, 2.0, wall)?;
+    hold(cell, config.release_wait_s, wall)?;
+    if let Ok(up) = plan_straight(cell, [bx, by, config.carry_height_m], &config.lift, wall) {
+        follow(cell, &up, false, wall)?;
+    }
+    wall.time(Work::Physics, || cell.world.settle());
+    let com = cell.world.object_center_of_mass_m(object)?;
+    out.measured.placed_at_m = Some(com);
+    // Inside: the centre of mass between the walls, resting on the floor (its lowest point
+    // between the floor and the wall tops; a tall object's centre may stand above them).
+    let (lo, hi) = basket.inner_bounds_m();
+    let pose = cell.world.object_pose(object)?;
+    let lowest = cell
+        .world
+        .object_hull_points_m(object)?
+        .iter()
+        .map(|p| transform_point(&pose, *p)[2])
+        .fold(f32::INFINITY, f32::min);
+    let lowest = if lowest.is_finite() { lowest } else { com[2] };
+    let inside =
+        (0..2).all(|i| com[i] > lo[i] && com[i] < hi[i]) && lowest > lo[2] - 0.01 && lowest < hi[2];
+    let (v, w) = cell.world.object_velocity(object)?;
+    let speed = v.iter().map(|c| c * c).sum::<f32>().sqrt();
+    let spin = w.iter().map(|c| c * c).sum::<f32>().sqrt();
+    let at_rest = speed < 0.02 && spin < 0.2;
+    out.measured.placed_motion = Some([speed, spin]);
+    out.measured.placed_lowest_z_m = Some(lowest);
+    out.placement_success = inside && at_rest;
+    if !out.placement_success {
+        return fail(out, FailureReason::DroppedOutside);
+    }
+    Ok(out)
+}
+
+/// Backs the gripper off (opens it fully, rises straight up to the pre-grasp height `up_to_z_m`
+/// when it is lower) and moves the arm home: where frames are taken from.
+pub fn park(
+    cell: &mut Cell,
+    up_to_z_m: f64,
+    config: &AttemptConfig,
+    wall: &mut WallTimes,
+) -> Result<(), AttemptError> {
+    let stroke = cell.robot.gripper().config().stroke_m;
+    cell.robot.gripper_mut().set_opening(stroke)?;
+    let tool = cell.robot.world_from_tool();
+    if tool.translation.vector.z < up_to_z_m - 1e-3 {
+        let [x, y] = [tool.translation.vector.x, tool.translation.vector.y];
+        if let Ok(up) = plan_straight(cell, [x, y, up_to_z_m], &config.lift, wall) {
+            follow(cell, &up, false, wall)?;
+        }
+    }
+    settle_opening(cell, 1.0, wall)?;
+    let q0 = cell.robot.joints_rad();
+    let home = cell.robot.arm().home_rad;
+    if q0 != home {
+        let arm = cell.robot.arm().clone();
+        let go = wall.time(Work::Planning, || {
+            JointTrajectory::point_to_point(&arm, &q0, &home)
+        });
+        if let Ok(go) = go {
+            follow(cell, &go, false, wall)?;
+        }
+    }
+    Ok(())
+}

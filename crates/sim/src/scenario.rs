@@ -1,0 +1,513 @@
+//! The scenarios of the reference protocol (`SIM-NOTES.md` §1.4): how the table is set for a
+//! round, and how many grasps a round may try.
+//!
+//! - [`Scenario::Isolated`]: one object dropped upright with a uniform yaw at a uniform position
+//!   in the reference region ((0.05, −0.52) ± 0.10 m); up to
+//!   [`ScenarioConfig::ranked_grasps`] ranked grasps on one prediction, the object reset to its
+//!   resting pose after each failed try. Round r shows object r of the library taken
+//!   category by category in turn (mug, teapot, …, then the second instance of each, …).
+//! - [`Scenario::Packed`]: [`ScenarioConfig::clutter_objects`] objects (a seeded draw from the
+//!   library): one upright at the centre, then one from each side (+x, −x, +y, −y) slid toward
+//!   the centre in [`ScenarioConfig::packed_step_m`] steps from
+//!   [`ScenarioConfig::packed_start_m`] until its hull touches one already placed, then backed
+//!   off one step (the reference's `create_packed`); all with uniform yaws, then settled.
+//! - [`Scenario::Pile`]: the same number of objects dropped one after another with uniform
+//!   orientations within ± [`ScenarioConfig::pile_spread_m`] of the centre, each released
+//!   [`ScenarioConfig::pile_drop_gap_m`] above the pile so far and settled, inside a temporary
+//!   box of four walls ([`ScenarioConfig::pile_box_m`]), swapped for a wider one once the pile
+//!   rests, which is removed once it rests again (the reference's `create_pile`).
+//!
+//! In packed and pile rounds every attempt starts from a fresh overview image; the grasp tried
+//! is the best over all objects after no failure, the second best after one, … A round ends
+//! when the table is clear, after [`ScenarioConfig::max_consecutive_failures`] failures in a
+//! row, or after [`ScenarioConfig::max_attempts_per_round`] attempts. Placed objects are
+//! removed, and so are objects that left the table.
+//!
+//! ```
+//! use lgdm_pointcloud::objects::procedural_library;
+//! use lgdm_sim::scenario::{Scenario, ScenarioConfig, set_table};
+//! use lgdm_sim::shapes::LibraryShapes;
+//! use lgdm_sim::world::{World, WorldConfig};
+//! use rand::SeedableRng;
+//! let library = procedural_library(&["can", "book", "mug", "apple", "glass"], 1, 0).unwrap();
+//! let mut world = World::new(WorldConfig::default()).unwrap();
+//! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+//! let picks: Vec<usize> = (0..5).collect();
+//! let mut shapes = LibraryShapes::hulls(library.len());
+//! let placed = set_table(&mut world, Scenario::Packed, &library, &mut shapes, &picks, &ScenarioConfig::default(), &mut rng).unwrap();
+//! assert_eq!(placed.len(), 5);
+//! assert_eq!("pile".parse::<Scenario>().unwrap(), Scenario::Pile);
+//! ```
+
+use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::objects::ObjectModel;
+use nalgebra::{Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rand::{Rng, RngExt};
+use rapier3d::parry::query::intersection_test;
+use serde::{Deserialize, Serialize};
+
+use crate::shapes::LibraryShapes;
+use crate::world::{DropRegion, ObjectHandle, World, WorldError, pose_to_rapier};
+
+/// How the table is set for a round.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scenario {
+    /// One object at a time.
+    Isolated,
+    /// Objects pushed together.
+    Packed,
+    /// Objects dropped in a heap.
+    Pile,
+}
+
+impl Scenario {
+    /// Every scenario.
+    pub const ALL: [Scenario; 3] = [Self::Isolated, Self::Packed, Self::Pile];
+
+    /// The name as the cli spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Isolated => "isolated",
+            Self::Packed => "packed",
+            Self::Pile => "pile",
+        }
+    }
+}
+
+impl std::fmt::Display for Scenario {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// An unknown scenario name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown scenario `{0}` (known: isolated, packed, pile)")]
+pub struct UnknownScenario(pub String);
+
+impl std::str::FromStr for Scenario {
+    type Err = UnknownScenario;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|c| c.as_str() == s)
+            .ok_or_else(|| UnknownScenario(s.to_string()))
+    }
+}
+
+/// Scenario constants. Defaults are stated per field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScenarioConfig {
+    /// Where isolated objects are dropped (default: (0.05, −0.52) ± 0.10 m, upright, uniform
+    /// yaw, 1 cm above the table; the reference `isolated_obj_scenario`).
+    pub isolated_region: DropRegion,
+    /// Ranked grasps tried per prediction in the isolated scenario (default 3).
+    pub ranked_grasps: usize,
+    /// A packed or pile round ends after this many failed attempts in a row (default 3).
+    pub max_consecutive_failures: usize,
+    /// Objects in a packed or pile round (default 5).
+    pub clutter_objects: usize,
+    /// Centre of the packed and pile arrangements on the table (m; default (0.05, −0.52)).
+    pub clutter_center_xy_m: [f32; 2],
+    /// Distance from the centre at which packed side objects start sliding (m; default 0.30,
+    /// the reference margin).
+    pub packed_start_m: f32,
+    /// Slide step of packed side objects (m; default 0.01, the reference's).
+    pub packed_step_m: f32,
+    /// Half extent of the pile's drop square (m; default 0.025, the reference's).
+    pub pile_spread_m: f32,
+    /// Inner sides of the temporary boxes: the pile is dropped into the first; once it rests
+    /// the box is swapped for the second, which is removed once the pile rests again (m;
+    /// default [0.30, 0.45], the reference's).
+    pub pile_box_m: [f32; 2],
+    /// Height of that box's walls (m; default 0.15).
+    pub pile_box_height_m: f32,
+    /// Each pile object is released with its lowest point this far above the pile's top (m;
+    /// default 0.02).
+    pub pile_drop_gap_m: f32,
+    /// Most attempts in one round (default 20).
+    pub max_attempts_per_round: usize,
+}
+
+impl Default for ScenarioConfig {
+    fn default() -> Self {
+        Self {
+            isolated_region: DropRegion::default(),
+            ranked_grasps: 3,
+            max_consecutive_failures: 3,
+            clutter_objects: 5,
+            clutter_center_xy_m: [0.05, -0.52],
+            packed_start_m: 0.30,
+            packed_step_m: 0.01,
+            pile_spread_m: 0.025,
+            pile_box_m: [0.30, 0.45],
+            pile_box_height_m: 0.15,
+            pile_drop_gap_m: 0.02,
+            max_attempts_per_round: 20,
+        }
+    }
+}
+
+impl ScenarioConfig {
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        let bad = |field: &str, reason: String| {
+            Err(WorldError::InvalidConfig {
+                field: format!("scenario.{field}"),
+                reason,
+            })
+        };
+        for (field, v) in [
+            ("ranked_grasps", self.ranked_grasps),
+            ("max_consecutive_failures", self.max_consecutive_failures),
+            ("clutter_objects", self.clutter_objects),
+            ("max_attempts_per_round", self.max_attempts_per_round),
+        ] {
+            if v == 0 {
+                return bad(field, "must be at least 1".into());
+            }
+        }
+        for (field, v) in [
+            ("packed_start_m", self.packed_start_m),
+            ("packed_step_m", self.packed_step_m),
+            ("pile_spread_m", self.pile_spread_m),
+            ("pile_box_m[0]", self.pile_box_m[0]),
+            ("pile_box_m[1]", self.pile_box_m[1]),
+            ("pile_box_height_m", self.pile_box_height_m),
+            ("pile_drop_gap_m", self.pile_drop_gap_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, format!("{v} must be positive and finite"));
+            }
+        }
+        if !self.clutter_center_xy_m.iter().all(|v| v.is_finite()) {
+            return bad("clutter_center_xy_m", "must be finite".into());
+        }
+        Ok(())
+    }
+
+    /// Objects a round of `scenario` puts on the table.
+    pub fn objects_per_round(&self, scenario: Scenario) -> usize {
+        match scenario {
+            Scenario::Isolated => 1,
+            Scenario::Packed | Scenario::Pile => self.clutter_objects,
+        }
+    }
+}
+
+/// An object on the table in a round: its world handle and who it is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacedObject {
+    /// The handle in the world.
+    pub handle: ObjectHandle,
+    /// Index into the library.
+    pub library_index: usize,
+    /// Its name in the world (the instance name, `#2` appended for a repeat).
+    pub name: String,
+    /// Its category.
+    pub category: String,
+    /// Its resting pose after the table was set.
+    pub rest_pose: Pose,
+}
+
+/// Library indices of the objects round `round` shows: for the isolated scenario the library
+/// taken category by category in turn; for packed and pile a seeded draw without replacement
+/// (with replacement once the library is exhausted).
+pub fn round_objects<R: Rng + ?Sized>(
+    scenario: Scenario,
+    library: &[ObjectModel],
+    round: usize,
+    config: &ScenarioConfig,
+    rng: &mut R,
+) -> Vec<usize> {
+    if library.is_empty() {
+        return Vec::new();
+    }
+    match scenario {
+        Scenario::Isolated => {
+            let order = interleaved_order(library);
+            vec![order[round % order.len()]]
+        }
+        Scenario::Packed | Scenario::Pile => {
+            let mut pool: Vec<usize> = (0..library.len()).collect();
+            let mut out = Vec::with_capacity(config.clutter_objects);
+            for _ in 0..config.clutter_objects {
+                if pool.is_empty() {
+                    pool = (0..library.len()).collect();
+                }
+                let k = rng.random_range(0..pool.len());
+                out.push(pool.swap_remove(k));
+            }
+            out
+        }
+    }
+}
+
+/// The library's indices taken category by category in turn (categories in order of first
+/// appearance): the first instance of every category, then the second, …
+pub fn interleaved_order(library: &[ObjectModel]) -> Vec<usize> {
+    let mut categories: Vec<&str> = Vec::new();
+    for o in library {
+        if !categories.contains(&o.category.as_str()) {
+            categories.push(&o.category);
+        }
+    }
+    let groups: Vec<Vec<usize>> = categories
+        .iter()
+        .map(|c| {
+            (0..library.len())
+                .filter(|&i| library[i].category == *c)
+                .collect()
+        })
+        .collect();
+    let longest = groups.iter().map(Vec::len).max().unwrap_or(0);
+    let mut out = Vec::with_capacity(library.len());
+    for k in 0..longest {
+        for g in &groups {
+            if let Some(&i) = g.get(k) {
+                out.push(i);
+            }
+        }
+    }
+    out
+}
+
+fn uniform_yaw<R: Rng + ?Sized>(rng: &mut R) -> Rotation3<f32> {
+    let yaw = rng.random_range(0.0_f32..std::f32::consts::PI);
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw).to_rotation_matrix()
+}
+
+fn uniform_rotation<R: Rng + ?Sized>(rng: &mut R) -> Rotation3<f32> {
+    let (u1, u2, u3) = (
+        rng.random_range(0.0_f32..1.0),
+        rng.random_range(0.0_f32..std::f32::consts::TAU),
+        rng.random_range(0.0_f32..std::f32::consts::TAU),
+    );
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    UnitQuaternion::from_quaternion(Quaternion::new(
+        b * u3.cos(),
+        a * u2.sin(),
+        a * u2.cos(),
+        b * u3.sin(),
+    ))
+    .to_rotation_matrix()
+}
+
+/// Whether object `a` at `pose_a` and object `b` at its current pose intersect (their hulls).
+fn hulls_intersect(
+    world: &World,
+    a: ObjectHandle,
+    pose_a: &Pose,
+    b: ObjectHandle,
+) -> Result<bool, WorldError> {
+    let ca = &world.physics.colliders[world.object_collider(a)?];
+    let cb = &world.physics.colliders[world.object_collider(b)?];
+    let pa = pose_to_rapier(pose_a).ok_or_else(|| WorldError::NonFinitePose {
+        what: "packed placement".into(),
+    })?;
+    let pb = pose_to_rapier(&world.object_pose(b)?).ok_or_else(|| WorldError::NonFinitePose {
+        what: "packed placement".into(),
+    })?;
+    Ok(intersection_test(&pa, ca.shape(), &pb, cb.shape()).map_or(true, |i| i.intersecting))
+}
+
+/// Sets the table for one round: spawns `picks` (library indices) as `scenario` arranges them,
+/// each with its collider shape from `shapes`, and settles the scene. Returns the objects with their resting poses, in spawn order.
+pub fn set_table<R: Rng + ?Sized>(
+    world: &mut World,
+    scenario: Scenario,
+    library: &[ObjectModel],
+    shapes: &mut LibraryShapes,
+    picks: &[usize],
+    config: &ScenarioConfig,
+    rng: &mut R,
+) -> Result<Vec<PlacedObject>, WorldError> {
+    config.validate()?;
+    let top = world.config().table.top_z_m();
+    let mut spawned: Vec<(ObjectHandle, usize, String)> = Vec::new();
+    let name_of = |index: usize, spawned: &[(ObjectHandle, usize, String)]| {
+        let base = library[index].name.clone();
+        let repeats = spawned.iter().filter(|s| s.1 == index).count();
+        if repeats == 0 {
+            base
+        } else {
+            format!("{base}#{}", repeats + 1)
+        }
+    };
+    let [cx, cy] = config.clutter_center_xy_m;
+    match scenario {
+        Scenario::Isolated => {
+            for &i in picks {
+                let name = name_of(i, &spawned);
+                let h = crate::shapes::drop_object(
+                    shapes,
+                    world,
+                    i,
+                    &name,
+                    &library[i],
+                    &config.isolated_region,
+                    rng,
+                )?;
+                spawned.push((h, i, name));
+            }
+        }
+        Scenario::Packed => {
+            let sides = [[1.0f32, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]];
+            for (k, &i) in picks.iter().enumerate() {
+                let name = name_of(i, &spawned);
+                let rotation = uniform_yaw(rng);
+                let at = |d: f32| {
+                    let [dx, dy] = if k == 0 {
+                        [0.0, 0.0]
+                    } else {
+                        sides[(k - 1) % 4]
+                    };
+                    // A fifth side object and beyond start from the diagonals.
+                    let ring = if k == 0 { 0.0 } else { ((k - 1) / 4) as f32 };
+                    let (dx, dy) = if ring > 0.0 {
+                        (dx - dy, dy + dx)
+                    } else {
+                        (dx, dy)
+                    };
+                    Pose::from_parts(Translation3::new(cx + dx * d, cy + dy * d, top), rotation)
+                };
+                // Spawn at the start, then slide in until touching, and back off one step.
+                let start = if k == 0 { 0.0 } else { config.packed_start_m };
+                let h = shapes.spawn(world, i, &name, &library[i], &at(start))?;
+                let mut d = start;
+                if k > 0 {
+                    let mut last_free = start;
+                    while d > 0.0 {
+                        let mut touching = false;
+                        for (other, _, _) in &spawned {
+                            if hulls_intersect(world, h, &at(d), *other)? {
+                                touching = true;
+                                break;
+                            }
+                        }
+                        if touching {
+                            break;
+                        }
+                        last_free = d;
+                        d -= config.packed_step_m;
+                    }
+                    d = last_free;
+                }
+                world.reset_object_pose(h, &at(d))?;
+                spawned.push((h, i, name));
+            }
+            world.settle();
+        }
+        Scenario::Pile => {
+            // A temporary box of four walls around the drop square; once the pile rests it is
+            // swapped for the wider one, and that is removed once the pile rests again.
+            let h = config.pile_box_height_m;
+            let walls_of = |world: &mut World, side: f32| -> Vec<_> {
+                let (inner, t) = (0.5 * side, 0.01f32);
+                [
+                    (
+                        [cx + inner + t, cy, top + 0.5 * h],
+                        [t, inner + 2.0 * t, 0.5 * h],
+                    ),
+                    (
+                        [cx - inner - t, cy, top + 0.5 * h],
+                        [t, inner + 2.0 * t, 0.5 * h],
+                    ),
+                    (
+                        [cx, cy + inner + t, top + 0.5 * h],
+                        [inner + 2.0 * t, t, 0.5 * h],
+                    ),
+                    (
+                        [cx, cy - inner - t, top + 0.5 * h],
+                        [inner + 2.0 * t, t, 0.5 * h],
+                    ),
+                ]
+                .into_iter()
+                .map(|(c, half)| {
+                    let mu = world.config().table.friction;
+                    world.add_fixed_box(c, half, mu)
+                })
+                .collect()
+            };
+            let walls = walls_of(world, config.pile_box_m[0]);
+            let s = config.pile_spread_m;
+            for &i in picks {
+                let name = name_of(i, &spawned);
+                let rotation = uniform_rotation(rng);
+                let x = cx + s * rng.random_range(-1.0_f32..=1.0);
+                let y = cy + s * rng.random_range(-1.0_f32..=1.0);
+                // Release above the pile so far.
+                let mut pile_top = top;
+                for (other, _, _) in &spawned {
+                    let pose = world.object_pose(*other)?;
+                    for p in world.object_hull_points_m(*other)? {
+                        pile_top = pile_top.max((pose * nalgebra::Point3::from(p)).z);
+                    }
+                }
+                let lowest = library[i]
+                    .mesh
+                    .vertices
+                    .iter()
+                    .map(|v| (rotation * Vector3::from(*v)).z)
+                    .fold(f32::INFINITY, f32::min);
+                let lowest = if lowest.is_finite() { lowest } else { 0.0 };
+                let z = pile_top + config.pile_drop_gap_m - lowest;
+                let pose = Pose::from_parts(Translation3::new(x, y, z), rotation);
+                let h = shapes.spawn(world, i, &name, &library[i], &pose)?;
+                world.settle();
+                spawned.push((h, i, name));
+            }
+            for wall in walls {
+                world.remove_fixed_box(wall);
+            }
+            let wider = walls_of(world, config.pile_box_m[1]);
+            world.settle();
+            for wall in wider {
+                world.remove_fixed_box(wall);
+            }
+            world.settle();
+        }
+    }
+    spawned
+        .into_iter()
+        .map(|(handle, library_index, name)| {
+            Ok(PlacedObject {
+                handle,
+                library_index,
+                category: library[library_index].category.clone(),
+                rest_pose: world.object_pose(handle)?,
+                name,
+            })
+        })
+        .collect()
+}
+
+/// Checks that every library object can be simulated (its convex hull can be built, it fits on
+/// the table), naming the first that cannot.
+pub fn check_library(
+    world_config: &crate::world::WorldConfig,
+    library: &[ObjectModel],
+) -> Result<(), WorldError> {
+    let mut world = World::new(world_config.clone())?;
+    let top = world_config.table.top_z_m();
+    let [cx, cy, _] = world_config.table.center_m;
+    for o in library {
+        let pose = Pose::from_parts(Translation3::new(cx, cy, top), Rotation3::identity());
+        let h = world.spawn_object(&o.name, &o.mesh, &pose)?;
+        world.remove_object(h)?;
+    }
+    Ok(())
+}
+
+/// Whether the object's centre of mass is still over the table top (not fallen off, not in a
+/// basket).
+pub fn on_table(world: &World, handle: ObjectHandle) -> Result<bool, WorldError> {
+    let t = &world.config().table;
+    let com = world.object_center_of_mass_m(handle)?;
+    Ok((com[0] - t.center_m[0]).abs() <= 0.5 * t.size_m[0]
+        && (com[1] - t.center_m[1]).abs() <= 0.5 * t.size_m[1]
+        && com[2] > t.top_z_m() - 0.01)
+}

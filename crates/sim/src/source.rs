@@ -1,0 +1,231 @@
+//! Grasp sources: what proposes grasps on an object-centred crop. One small trait,
+//! [`GraspSource`], at the seam between perception and the robot; grasps come back in crop
+//! pixels with the conventions of [`lgdm_pointcloud::grasp::decode`] (centre, angle θ
+//! counter-clockwise on screen, opening and jaw in crop pixels, quality), best first, and the
+//! robot places them with [`crate::perception::ObjectView::grasp_in_world`].
+//!
+//! - [`AnalyticSource`] (`analytic`): antipodal grasps from the crop's depth image
+//!   ([`lgdm_pointcloud::grasp::analytic`]).
+//! - [`RandomSource`] (`random`): a baseline — a random object pixel, a random angle and a random
+//!   opening within the stroke, seeded.
+//! - `network`: the grasp autoencoder through `lgdm_pybridge` lives in the cli behind its `ae`
+//!   feature (so this crate never needs torch) and implements this trait there.
+//!
+//! ```
+//! use lgdm_pointcloud::crop::ObjectCrop;
+//! use lgdm_pointcloud::grasp::decode::InputCrop;
+//! use lgdm_pointcloud::grasp::GraspSpec;
+//! use lgdm_pointcloud::render::Intrinsics;
+//! use lgdm_sim::source::{GraspQuery, GraspSource, RandomSource};
+//! // A 64 px crop of a table 0.5 m away with a 2 cm tall square in the middle.
+//! let n = 64;
+//! let depth_m = (0..n * n)
+//!     .map(|i| if (24..40).contains(&(i % n)) && (24..40).contains(&(i / n)) { 0.48 } else { 0.5 })
+//!     .collect();
+//! let crop = ObjectCrop {
+//!     size_px: n as u32,
+//!     rgb: vec![[0; 3]; n * n],
+//!     depth_m,
+//!     window: InputCrop::IDENTITY,
+//!     table_depth_m: 0.5,
+//! };
+//! let intrinsics = Intrinsics::centered(64, 64, 100.0);
+//! let gripper = GraspSpec::default();
+//! let query = GraspQuery { crop: &crop, intrinsics: &intrinsics, gripper: &gripper };
+//! let mut random = RandomSource::new(7);
+//! let grasps = random.grasps(&query, 3).unwrap();
+//! assert_eq!(grasps.len(), 3);
+//! assert!(grasps.iter().all(|g| (24.0..40.0).contains(&g.center_px[0])));
+//! assert!(grasps[0].quality >= grasps[1].quality);
+//! ```
+
+use lgdm_pointcloud::crop::ObjectCrop;
+use lgdm_pointcloud::grasp::GraspSpec;
+use lgdm_pointcloud::grasp::analytic::{AnalyticError, AnalyticParams, analytic_grasps};
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pointcloud::render::Intrinsics;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// What a grasp source is asked about: one object-centred crop.
+#[derive(Debug, Clone, Copy)]
+pub struct GraspQuery<'a> {
+    /// The crop (224 px of 0.22 m by default): colour, depth (m) and where it sits in its frame.
+    pub crop: &'a ObjectCrop,
+    /// Intrinsics of the frame the crop was cut from (its `window` maps crop px to that frame).
+    pub intrinsics: &'a Intrinsics,
+    /// The gripper (stroke, finger width and length, friction).
+    pub gripper: &'a GraspSpec,
+}
+
+impl GraspQuery<'_> {
+    /// Crop pixels per metre at optical depth `depth_m`.
+    pub fn crop_px_per_m(&self, depth_m: f32) -> f32 {
+        self.intrinsics.fx / (depth_m * self.crop.window.image_px_per_map_px)
+    }
+}
+
+/// Why a source gave no answer (an empty list is an answer: no grasp found).
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// The analytic search failed.
+    #[error("analytic grasps: {0}")]
+    Analytic(#[from] AnalyticError),
+    /// The crop is malformed (buffer sizes, non-finite fields).
+    #[error("bad crop: {0}")]
+    BadCrop(String),
+    /// Any other source's failure (e.g. the network's bridge), with the source's name.
+    #[error("{source_name}: {message}")]
+    Other {
+        /// The source.
+        source_name: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// Proposes grasps on an object-centred crop.
+pub trait GraspSource {
+    /// The source's name as the cli spells it (`analytic`, `random`, `network`).
+    fn name(&self) -> &str;
+
+    /// At most `k` grasps on the crop, best first (crop pixels, decode conventions). Same
+    /// inputs and same internal state give the same grasps.
+    fn grasps(
+        &mut self,
+        query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError>;
+}
+
+/// Antipodal grasps from the crop's depth image ([`analytic_grasps`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct AnalyticSource {
+    /// Search parameters (`num_grasps` is replaced by the `k` asked for).
+    pub params: AnalyticParams,
+}
+
+impl AnalyticSource {
+    /// With the default parameters.
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+impl GraspSource for AnalyticSource {
+    fn name(&self) -> &str {
+        "analytic"
+    }
+
+    fn grasps(
+        &mut self,
+        query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError> {
+        if k == 0 {
+            return Ok(Vec::new());
+        }
+        let params = AnalyticParams {
+            num_grasps: k,
+            ..self.params
+        };
+        Ok(analytic_grasps(
+            query.crop,
+            query.intrinsics,
+            query.gripper,
+            &params,
+        )?)
+    }
+}
+
+/// The random baseline: each grasp is centred on a uniformly drawn object pixel of the crop (a
+/// pixel at least [`RandomSource::min_height_m`] nearer than the table), with a uniform angle
+/// and a uniform opening in (0, stroke]; qualities are uniform and sorted. Seeded: the same seed
+/// and the same queries give the same grasps.
+#[derive(Debug, Clone)]
+pub struct RandomSource {
+    rng: ChaCha8Rng,
+    /// A crop pixel is on an object when it is this much nearer than the table (m; default
+    /// 0.005, as segmentation).
+    pub min_height_m: f32,
+}
+
+impl RandomSource {
+    /// A random source seeded with `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self {
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            min_height_m: 0.005,
+        }
+    }
+}
+
+fn check_crop(crop: &ObjectCrop) -> Result<(), SourceError> {
+    let n = crop.size_px as usize;
+    if crop.depth_m.len() != n * n {
+        return Err(SourceError::BadCrop(format!(
+            "depth has {} values for {n}×{n} px",
+            crop.depth_m.len()
+        )));
+    }
+    if !(crop.table_depth_m.is_finite() && crop.table_depth_m > 0.0) {
+        return Err(SourceError::BadCrop(format!(
+            "table depth {}",
+            crop.table_depth_m
+        )));
+    }
+    let s = crop.window.image_px_per_map_px;
+    if !(s.is_finite() && s > 0.0) {
+        return Err(SourceError::BadCrop(format!("scale {s}")));
+    }
+    Ok(())
+}
+
+impl GraspSource for RandomSource {
+    fn name(&self) -> &str {
+        "random"
+    }
+
+    fn grasps(
+        &mut self,
+        query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError> {
+        let crop = query.crop;
+        check_crop(crop)?;
+        let limit = crop.table_depth_m - self.min_height_m;
+        let object: Vec<usize> = crop
+            .depth_m
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.is_finite() && **d > 0.0 && **d < limit)
+            .map(|(i, _)| i)
+            .collect();
+        if object.is_empty() || k == 0 {
+            return Ok(Vec::new());
+        }
+        let n = crop.size_px as usize;
+        let stroke = query.gripper.max_opening_m;
+        let mut out: Vec<DecodedGrasp> = (0..k)
+            .map(|_| {
+                let i = object[self.rng.random_range(0..object.len())];
+                let px_per_m = query.crop_px_per_m(crop.depth_m[i]);
+                let angle = self
+                    .rng
+                    .random_range(-std::f32::consts::FRAC_PI_2..std::f32::consts::FRAC_PI_2);
+                let opening_m = stroke * (1.0 - self.rng.random::<f32>());
+                let quality = 1.0 - self.rng.random::<f32>();
+                DecodedGrasp {
+                    center_px: [(i % n) as f32, (i / n) as f32],
+                    angle,
+                    width_px: opening_m * px_per_m,
+                    jaw_px: query.gripper.finger_width_m * px_per_m,
+                    quality,
+                }
+            })
+            .collect();
+        // Best first; a stable sort keeps the draw order among equal qualities.
+        out.sort_by(|a, b| b.quality.total_cmp(&a.quality));
+        Ok(out)
+    }
+}
