@@ -773,64 +773,22 @@ impl World {
         world_from_object: &Pose,
         material: &ObjectMaterial,
     ) -> Result<ObjectHandle, WorldError> {
-        material.validate("material.")?;
-        let points = hull_points(name, mesh)?;
-        let (lo, hi) = bounds(&points);
-        let extent_m = (0..3).map(|k| hi[k] - lo[k]).fold(0.0_f32, f32::max);
-        let limit_m = self.config.table.size_m[0].min(self.config.table.size_m[1]);
-        if extent_m > limit_m {
-            return Err(WorldError::ObjectTooLarge {
-                object: name.to_string(),
-                extent_m,
-                limit_m,
-            });
-        }
-        let pose = pose_to_rapier(world_from_object).ok_or_else(|| WorldError::NonFinitePose {
-            what: format!("object `{name}`"),
-        })?;
-        let failed = || WorldError::Hull {
-            object: name.to_string(),
-            problem: HullProblem::Failed,
-        };
-        let mut builder = ColliderBuilder::convex_hull(&points).ok_or_else(failed)?;
-        let max_face = self.config.max_face_vertices as usize;
-        for _ in 0..3 {
-            let Some(hull) = builder.shape.as_convex_polyhedron() else {
-                break;
-            };
-            let Some(kept) = thin_big_faces(hull, max_face) else {
-                break;
-            };
-            builder = ColliderBuilder::convex_hull(&kept).ok_or_else(failed)?;
-        }
-        let volume = builder.shape.mass_properties(1.0).mass();
+        let (points, pose) = self.check_new_object(name, mesh, world_from_object, material)?;
+        let shape =
+            thinned_hull(&points, self.config.max_face_vertices as usize).ok_or_else(|| {
+                WorldError::Hull {
+                    object: name.to_string(),
+                    problem: HullProblem::Failed,
+                }
+            })?;
+        let volume = shape.mass_properties(1.0).mass();
         if !(volume.is_finite() && volume > 1e-9) {
             return Err(WorldError::Hull {
                 object: name.to_string(),
                 problem: HullProblem::Flat,
             });
         }
-        let mass_kg =
-            (volume * material.density_kg_m3).clamp(material.min_mass_kg, material.max_mass_kg);
-        let collider = builder
-            .mass(mass_kg)
-            .friction(material.friction)
-            .friction_combine_rule(CoefficientCombineRule::Multiply)
-            .restitution(material.restitution)
-            .collision_groups(object_groups());
-        let body = RigidBodyBuilder::dynamic()
-            .pose(pose)
-            .angular_damping(material.angular_damping)
-            .can_sleep(self.config.allow_sleep);
-        let (body, collider) = self.physics.insert(body, collider);
-        let handle = ObjectHandle(self.objects.len() as u32);
-        self.objects.push(Some(ObjectEntry {
-            name: name.to_string(),
-            mesh: mesh.clone(),
-            body,
-            collider,
-        }));
-        Ok(handle)
+        Ok(self.insert_object(name, mesh, pose, shape, volume, material))
     }
 
     /// Spawns `mesh` as a dynamic body whose collider is the compound of the convex hulls of
@@ -847,6 +805,43 @@ impl World {
         world_from_object: &Pose,
         material: &ObjectMaterial,
     ) -> Result<ObjectHandle, WorldError> {
+        let (_, pose) = self.check_new_object(name, mesh, world_from_object, material)?;
+        let max_face = self.config.max_face_vertices as usize;
+        let mut shapes = Vec::with_capacity(parts.len());
+        let mut volume = 0.0f32;
+        for part in parts {
+            let pts: Vec<RVec> = part.iter().map(|p| RVec::from_array(*p)).collect();
+            if pts.len() < 4 || !pts.iter().all(|p| p.is_finite()) {
+                continue;
+            }
+            let Some(shape) = thinned_hull(&pts, max_face) else {
+                continue;
+            };
+            let v = shape.mass_properties(1.0).mass();
+            if v.is_finite() && v > 1e-9 {
+                volume += v;
+                shapes.push((RPose::IDENTITY, shape));
+            }
+        }
+        if shapes.is_empty() {
+            return Err(WorldError::Hull {
+                object: name.to_string(),
+                problem: HullProblem::Failed,
+            });
+        }
+        let compound = SharedShape::compound(shapes);
+        Ok(self.insert_object(name, mesh, pose, compound, volume, material))
+    }
+
+    /// The checks every spawned object passes (material, a buildable hull of the mesh, no
+    /// larger than the table, a finite pose): the hull points and the pose.
+    fn check_new_object(
+        &self,
+        name: &str,
+        mesh: &Mesh,
+        world_from_object: &Pose,
+        material: &ObjectMaterial,
+    ) -> Result<(Vec<RVec>, RPose), WorldError> {
         material.validate("material.")?;
         let points = hull_points(name, mesh)?;
         let (lo, hi) = bounds(&points);
@@ -862,44 +857,23 @@ impl World {
         let pose = pose_to_rapier(world_from_object).ok_or_else(|| WorldError::NonFinitePose {
             what: format!("object `{name}`"),
         })?;
-        let max_face = self.config.max_face_vertices as usize;
-        let mut shapes = Vec::with_capacity(parts.len());
-        let mut volume = 0.0f32;
-        for part in parts {
-            let pts: Vec<RVec> = part.iter().map(|p| RVec::from_array(*p)).collect();
-            if pts.len() < 4 || !pts.iter().all(|p| p.is_finite()) {
-                continue;
-            }
-            let Some(mut shape) = SharedShape::convex_hull(&pts) else {
-                continue;
-            };
-            for _ in 0..3 {
-                let Some(kept) = shape
-                    .as_convex_polyhedron()
-                    .and_then(|h| thin_big_faces(h, max_face))
-                else {
-                    break;
-                };
-                match SharedShape::convex_hull(&kept) {
-                    Some(thinner) => shape = thinner,
-                    None => break,
-                }
-            }
-            let v = shape.mass_properties(1.0).mass();
-            if v.is_finite() && v > 1e-9 {
-                volume += v;
-                shapes.push((RPose::IDENTITY, shape));
-            }
-        }
-        if shapes.is_empty() {
-            return Err(WorldError::Hull {
-                object: name.to_string(),
-                problem: HullProblem::Failed,
-            });
-        }
+        Ok((points, pose))
+    }
+
+    /// Inserts a dynamic object body with collider `shape` of `volume` (m³) and the material's
+    /// mass rule, friction and damping.
+    fn insert_object(
+        &mut self,
+        name: &str,
+        mesh: &Mesh,
+        pose: RPose,
+        shape: SharedShape,
+        volume: f32,
+        material: &ObjectMaterial,
+    ) -> ObjectHandle {
         let mass_kg =
             (volume * material.density_kg_m3).clamp(material.min_mass_kg, material.max_mass_kg);
-        let collider = ColliderBuilder::new(SharedShape::compound(shapes))
+        let collider = ColliderBuilder::new(shape)
             .mass(mass_kg)
             .friction(material.friction)
             .friction_combine_rule(CoefficientCombineRule::Multiply)
@@ -917,7 +891,7 @@ impl World {
             body,
             collider,
         }));
-        Ok(handle)
+        handle
     }
 
     /// Drops `mesh` at a random pose inside `region` (uniform x, y; upright with a uniform yaw, or
@@ -1204,6 +1178,26 @@ fn hull_points(name: &str, mesh: &Mesh) -> Result<Vec<RVec>, WorldError> {
 /// The hull's points without the surplus vertices of faces that have more than `max_face`:
 /// `None` when no face is that big. The vertices a big face keeps are spread by farthest-point
 /// sampling from its first vertex (deterministic).
+/// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
+/// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
+/// have no hull.
+fn thinned_hull(points: &[RVec], max_face: usize) -> Option<SharedShape> {
+    let mut shape = SharedShape::convex_hull(points)?;
+    for _ in 0..3 {
+        let Some(kept) = shape
+            .as_convex_polyhedron()
+            .and_then(|h| thin_big_faces(h, max_face))
+        else {
+            break;
+        };
+        match SharedShape::convex_hull(&kept) {
+            Some(thinner) => shape = thinner,
+            None => break,
+        }
+    }
+    Some(shape)
+}
+
 fn thin_big_faces(
     hull: &rapier3d::parry::shape::ConvexPolyhedron,
     max_face: usize,
