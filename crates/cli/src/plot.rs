@@ -178,14 +178,7 @@ fn category_bars(path: &Path, m: &RunMetrics) -> Result<()> {
             .configure_mesh()
             .disable_x_mesh()
             .x_labels(n.max(1))
-            .x_label_formatter(&|x| {
-                let i = x.round();
-                if (x - i).abs() < 1e-6 && i >= 0.0 {
-                    names.get(i as usize).cloned().unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
+            .x_label_formatter(&|x| bar_label(&names, *x))
             .y_desc("accuracy")
             .label_style(("sans-serif", 13))
             .draw()
@@ -386,14 +379,7 @@ pub fn write_bar_chart(
             .configure_mesh()
             .disable_x_mesh()
             .x_labels(n.max(1))
-            .x_label_formatter(&|x| {
-                let i = x.round();
-                if (x - i).abs() < 1e-6 && i >= 0.0 {
-                    names.get(i as usize).cloned().unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
+            .x_label_formatter(&|x| bar_label(&names, *x))
             .y_desc(y_desc)
             .label_style(("sans-serif", 12))
             .draw()
@@ -418,4 +404,14 @@ pub fn write_bar_chart(
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
     write_png(path, &buf)
+}
+
+/// The name of the bar at x (bars sit at 0, 1, …); empty between bars.
+fn bar_label(names: &[String], x: f64) -> String {
+    let i = x.round();
+    if (x - i).abs() < 1e-6 && i >= 0.0 {
+        names.get(i as usize).cloned().unwrap_or_default()
+    } else {
+        String::new()
+    }
 }
