@@ -41,13 +41,13 @@
 
 use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
-use nalgebra::{Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
 use rapier3d::parry::query::intersection_test;
 use serde::{Deserialize, Serialize};
 
 use crate::shapes::LibraryShapes;
-use crate::world::{DropRegion, ObjectHandle, World, WorldError, pose_to_rapier};
+use crate::world::{DropRegion, ObjectHandle, World, WorldError, pose_to_rapier, uniform_rotation};
 
 /// How the table is set for a round.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -278,22 +278,6 @@ pub fn interleaved_order(library: &[ObjectModel]) -> Vec<usize> {
 fn uniform_yaw<R: Rng + ?Sized>(rng: &mut R) -> Rotation3<f32> {
     let yaw = rng.random_range(0.0_f32..std::f32::consts::PI);
     UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw).to_rotation_matrix()
-}
-
-fn uniform_rotation<R: Rng + ?Sized>(rng: &mut R) -> Rotation3<f32> {
-    let (u1, u2, u3) = (
-        rng.random_range(0.0_f32..1.0),
-        rng.random_range(0.0_f32..std::f32::consts::TAU),
-        rng.random_range(0.0_f32..std::f32::consts::TAU),
-    );
-    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    UnitQuaternion::from_quaternion(Quaternion::new(
-        b * u3.cos(),
-        a * u2.sin(),
-        a * u2.cos(),
-        b * u3.sin(),
-    ))
-    .to_rotation_matrix()
 }
 
 /// Whether object `a` at `pose_a` and object `b` at its current pose intersect (their hulls).

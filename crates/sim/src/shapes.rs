@@ -99,41 +99,10 @@ pub fn drop_object<R: rand::Rng + ?Sized>(
     region: &DropRegion,
     rng: &mut R,
 ) -> Result<ObjectHandle, WorldError> {
-    use nalgebra::{Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
-    use rand::RngExt;
     if shapes.config.shape == ObjectShape::Hull {
         return Ok(world.drop_object(name, &object.mesh, region, rng)?.0);
     }
-    let [hx, hy] = region.half_extents_m.map(f32::abs);
-    let x = region.center_xy_m[0] + hx * rng.random_range(-1.0_f32..=1.0);
-    let y = region.center_xy_m[1] + hy * rng.random_range(-1.0_f32..=1.0);
-    let rotation = if region.tumble {
-        let (u1, u2, u3) = (
-            rng.random_range(0.0_f32..1.0),
-            rng.random_range(0.0_f32..std::f32::consts::TAU),
-            rng.random_range(0.0_f32..std::f32::consts::TAU),
-        );
-        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-        UnitQuaternion::from_quaternion(Quaternion::new(
-            b * u3.cos(),
-            a * u2.sin(),
-            a * u2.cos(),
-            b * u3.sin(),
-        ))
-    } else {
-        let yaw = rng.random_range(0.0_f32..std::f32::consts::TAU);
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw)
-    };
-    let rotation: Rotation3<f32> = rotation.to_rotation_matrix();
-    let lowest = object
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| (rotation * Vector3::from(*v)).z)
-        .fold(f32::INFINITY, f32::min);
-    let lowest = if lowest.is_finite() { lowest } else { 0.0 };
-    let z = world.config().table.top_z_m() + region.drop_height_m - lowest;
-    let pose = Pose::from_parts(Translation3::new(x, y, z), rotation);
+    let pose = region.sample_pose(&object.mesh, world.config().table.top_z_m(), rng);
     let handle = shapes.spawn(world, index, name, object, &pose)?;
     world.settle();
     Ok(handle)

@@ -574,6 +574,53 @@ pub struct DropRegion {
     pub tumble: bool,
 }
 
+impl DropRegion {
+    /// A random pose for `mesh` in the region (uniform x, y; upright with a uniform yaw, or a
+    /// uniform orientation when `tumble`), its lowest point `drop_height_m` above a table top
+    /// at `table_top_z_m`. The draws are the same whatever calls it.
+    pub fn sample_pose<R: rand::Rng + ?Sized>(
+        &self,
+        mesh: &Mesh,
+        table_top_z_m: f32,
+        rng: &mut R,
+    ) -> Pose {
+        let [hx, hy] = self.half_extents_m.map(f32::abs);
+        let x = self.center_xy_m[0] + hx * rng.random_range(-1.0_f32..=1.0);
+        let y = self.center_xy_m[1] + hy * rng.random_range(-1.0_f32..=1.0);
+        let rotation = if self.tumble {
+            uniform_rotation(rng)
+        } else {
+            let yaw = rng.random_range(0.0_f32..std::f32::consts::TAU);
+            UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw).to_rotation_matrix()
+        };
+        let lowest = mesh
+            .vertices
+            .iter()
+            .map(|v| (rotation * nalgebra::Vector3::from(*v)).z)
+            .fold(f32::INFINITY, f32::min);
+        let lowest = if lowest.is_finite() { lowest } else { 0.0 };
+        let z = table_top_z_m + self.drop_height_m - lowest;
+        Pose::from_parts(Translation3::new(x, y, z), rotation)
+    }
+}
+
+/// A uniformly random rotation (Shoemake's method).
+pub(crate) fn uniform_rotation<R: rand::Rng + ?Sized>(rng: &mut R) -> Rotation3<f32> {
+    let (u1, u2, u3) = (
+        rng.random_range(0.0_f32..1.0),
+        rng.random_range(0.0_f32..std::f32::consts::TAU),
+        rng.random_range(0.0_f32..std::f32::consts::TAU),
+    );
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    UnitQuaternion::from_quaternion(Quaternion::new(
+        b * u3.cos(),
+        a * u2.sin(),
+        a * u2.cos(),
+        b * u3.sin(),
+    ))
+    .to_rotation_matrix()
+}
+
 impl Default for DropRegion {
     fn default() -> Self {
         Self {
@@ -913,36 +960,7 @@ impl World {
         {
             finite(&format!("drop_region[{i}]"), *v)?;
         }
-        let [hx, hy] = region.half_extents_m.map(f32::abs);
-        let x = region.center_xy_m[0] + hx * rng.random_range(-1.0_f32..=1.0);
-        let y = region.center_xy_m[1] + hy * rng.random_range(-1.0_f32..=1.0);
-        let rotation = if region.tumble {
-            // Uniform random rotation (Shoemake).
-            let (u1, u2, u3) = (
-                rng.random_range(0.0_f32..1.0),
-                rng.random_range(0.0_f32..std::f32::consts::TAU),
-                rng.random_range(0.0_f32..std::f32::consts::TAU),
-            );
-            let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-            UnitQuaternion::from_quaternion(Quaternion::new(
-                b * u3.cos(),
-                a * u2.sin(),
-                a * u2.cos(),
-                b * u3.sin(),
-            ))
-        } else {
-            let yaw = rng.random_range(0.0_f32..std::f32::consts::TAU);
-            UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw)
-        };
-        let rotation: Rotation3<f32> = rotation.to_rotation_matrix();
-        let lowest = mesh
-            .vertices
-            .iter()
-            .map(|v| (rotation * nalgebra::Vector3::from(*v)).z)
-            .fold(f32::INFINITY, f32::min);
-        let lowest = if lowest.is_finite() { lowest } else { 0.0 };
-        let z = self.config.table.top_z_m() + region.drop_height_m - lowest;
-        let pose = Pose::from_parts(Translation3::new(x, y, z), rotation);
+        let pose = region.sample_pose(mesh, self.config.table.top_z_m(), rng);
         let handle = self.spawn_object(name, mesh, &pose)?;
         let report = self.settle();
         Ok((handle, report))
