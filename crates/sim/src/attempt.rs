@@ -37,12 +37,12 @@ use std::time::{Duration, Instant};
 
 use lgdm_pointcloud::grasp::decode::GraspDecodeParams;
 use lgdm_pointcloud::math::transform_point;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rapier3d::parry::query::Ray;
 use serde::{Deserialize, Serialize};
 
 use crate::gripper::{Contactee, GripperPart};
-use crate::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp};
+use crate::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
 use crate::perception::{ObjectView, WorldGrasp};
 use crate::robot::{Robot, RobotConfig, RobotError};
 use crate::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
@@ -94,6 +94,16 @@ pub struct AttemptConfig {
     /// A guarded descent that stops this far above the planned grasp height counts as a
     /// collision on approach when the grasp then fails (m; default 0.01).
     pub early_stop_m: f64,
+    /// Where the tool waits, pointing down, between attempts and when a round starts (m;
+    /// default (0.05, −0.52, 1.25): the reference approach height above the drop region, 11 cm
+    /// above the top of the tallest library object). Every approach is a straight line from
+    /// here down to the pre-grasp and every retreat one back, so the fingers never sweep
+    /// through an object on the way (a joint move from a lower home toppled standing cereal
+    /// boxes).
+    pub ready_position_m: [f64; 3],
+    /// Straight moves between the ready pose and a pre-grasp (default 0.5 m/s, 1 m/s², IK
+    /// waypoints every 1 cm).
+    pub transit: LinearMove,
     /// Height of the tool over the baskets while carrying (m; default 1.03: the arm reaches
     /// the baskets up to ~1.035 m).
     pub carry_height_m: f64,
@@ -135,6 +145,13 @@ impl Default for AttemptConfig {
             hold_s: 0.5,
             width_tolerance_m: 0.005,
             early_stop_m: 0.01,
+            ready_position_m: [0.05, -0.52, 1.25],
+            transit: LinearMove {
+                speed_m_s: 0.5,
+                accel_m_s2: 1.0,
+                waypoint_spacing_m: 0.01,
+                ..LinearMove::default()
+            },
             carry_height_m: 1.03,
             target_basket: 0,
             release_clearance_m: 0.03,
@@ -365,6 +382,36 @@ impl Cell {
         let stroke = config.gripper.stroke_m;
         let robot = Robot::new(&mut world, config, &home, stroke)?;
         let ik = IkSolver::new(robot.arm().clone(), IkConfig::default())?;
+        Ok(Self { world, robot, ik })
+    }
+
+    /// Adds the robot to `world` with its tool at `config`'s ready pose (top-down, the jaw yaw
+    /// closest to home's), gripper fully open.
+    pub fn at_ready(
+        mut world: World,
+        robot: RobotConfig,
+        config: &AttemptConfig,
+    ) -> Result<Self, AttemptError> {
+        let home = robot.arm.home_rad;
+        let stroke = robot.gripper.stroke_m;
+        let mut ik = IkSolver::new(robot.effective_arm(), IkConfig::default())?;
+        let home_tool =
+            ik.model()
+                .world_from_tool(&home)
+                .map_err(|e| AttemptError::InvalidConfig {
+                    field: "robot.arm.home_rad",
+                    reason: e.to_string(),
+                })?;
+        let yaw = jaw_yaw_rad(&home_tool);
+        let target = IkTarget::TopDown(TopDownGrasp::new(config.ready_position_m, yaw));
+        let ready = ik
+            .solve(&target, &home)
+            .map_err(|e| AttemptError::InvalidConfig {
+                field: "ready_position_m",
+                reason: format!("the arm cannot reach it pointing down: {e}"),
+            })?
+            .joints_rad;
+        let robot = Robot::new(&mut world, robot, &ready, stroke)?;
         Ok(Self { world, robot, ik })
     }
 
@@ -607,6 +654,37 @@ fn plan_straight(
     })
 }
 
+/// The jaw yaw of a top-down tool pose: the direction of the tool's x axis in the world's XY
+/// plane (rad).
+fn jaw_yaw_rad(world_from_tool: &Isometry3<f64>) -> f64 {
+    let x = world_from_tool.rotation * Vector3::x();
+    x.y.atan2(x.x)
+}
+
+/// A straight tool move to the top-down pose at `position_m` with jaw yaw `yaw_rad` — or
+/// `yaw_rad` + π, whichever turns the wrist less (the jaw is symmetric).
+fn plan_straight_top_down(
+    cell: &mut Cell,
+    position_m: [f64; 3],
+    yaw_rad: f64,
+    params: &LinearMove,
+    wall: &mut WallTimes,
+) -> Result<JointTrajectory, MotionError> {
+    let q0 = cell.robot.joints_rad();
+    let current = jaw_yaw_rad(&cell.robot.world_from_tool());
+    let mut turn = (yaw_rad - current).rem_euclid(std::f64::consts::PI);
+    if turn > std::f64::consts::FRAC_PI_2 {
+        turn -= std::f64::consts::PI;
+    }
+    let goal = Isometry3::from_parts(
+        Translation3::from(Vector3::from(position_m)),
+        top_down_rotation(current + turn),
+    );
+    wall.time(Work::Planning, || {
+        plan_linear_move(&mut cell.ik, &q0, &goal, params)
+    })
+}
+
 /// Largest true distance (m) between a gripper part and what it pushes on for the push to count
 /// as a touch in a guarded move.
 const TOUCH_DISTANCE_M: f32 = 0.001;
@@ -759,11 +837,13 @@ pub fn execute(
         Ok(out)
     };
 
-    // 1. Pre-grasp: a joint move, opening meanwhile.
+    // 1. Pre-grasp: a straight move down from the ready pose, opening meanwhile.
     cell.robot
         .gripper_mut()
         .set_opening(plan.opening_m as f32)?;
-    let Some(approach) = plan_joint_move(cell, [x, y, plan.pregrasp_z_m], yaw, wall) else {
+    let Ok(approach) =
+        plan_straight_top_down(cell, [x, y, plan.pregrasp_z_m], yaw, &config.transit, wall)
+    else {
         return fail(out, FailureReason::Unreachable);
     };
     let m = follow(cell, &approach, false, wall)?;
@@ -946,7 +1026,8 @@ pub fn execute(
 }
 
 /// Backs the gripper off (opens it fully, rises straight up to the pre-grasp height `up_to_z_m`
-/// when it is lower) and moves the arm home: where frames are taken from.
+/// when it is lower) and returns to the ready pose in a straight line: where frames are taken
+/// from and the next approach starts.
 pub fn park(
     cell: &mut Cell,
     up_to_z_m: f64,
@@ -956,23 +1037,20 @@ pub fn park(
     let stroke = cell.robot.gripper().config().stroke_m;
     cell.robot.gripper_mut().set_opening(stroke)?;
     let tool = cell.robot.world_from_tool();
-    if tool.translation.vector.z < up_to_z_m - 1e-3 {
-        let [x, y] = [tool.translation.vector.x, tool.translation.vector.y];
-        if let Ok(up) = plan_straight(cell, [x, y, up_to_z_m], &config.lift, wall) {
-            follow(cell, &up, false, wall)?;
-        }
+    let [x, y] = [tool.translation.vector.x, tool.translation.vector.y];
+    if tool.translation.vector.z < up_to_z_m - 1e-3
+        && let Ok(up) = plan_straight(cell, [x, y, up_to_z_m], &config.lift, wall)
+    {
+        follow(cell, &up, false, wall)?;
     }
     settle_opening(cell, 1.0, wall)?;
-    let q0 = cell.robot.joints_rad();
-    let home = cell.robot.arm().home_rad;
-    if q0 != home {
-        let arm = cell.robot.arm().clone();
-        let go = wall.time(Work::Planning, || {
-            JointTrajectory::point_to_point(&arm, &q0, &home)
-        });
-        if let Ok(go) = go {
-            follow(cell, &go, false, wall)?;
-        }
+    let yaw = jaw_yaw_rad(&cell.robot.world_from_tool());
+    let ready = config.ready_position_m;
+    let at = cell.robot.world_from_tool().translation.vector;
+    if (at - Vector3::from(ready)).norm() > 1e-3
+        && let Ok(back) = plan_straight_top_down(cell, ready, yaw, &config.transit, wall)
+    {
+        follow(cell, &back, false, wall)?;
     }
     Ok(())
 }

@@ -15,7 +15,9 @@
 //!   over 0.81 m of table (3.6 mm/px) would give a crop of ~61 px upsampled 3.7×, too coarse
 //!   for rims and handles, and its 1.115 m height scales the tops of objects differently.
 //!
-//! What is drawn: the table (in the dataset's table colour), the baskets and the objects. The
+//! What is drawn: the table (in the dataset's table colour), the baskets and the objects — by
+//! default their colliders in the meshes' colours ([`ObjectDrawing`]), so the camera sees what
+//! the fingers will meet. The
 //! arm and gripper are not drawn: frames are taken with the arm parked away from the table.
 //! Labels: [`LABEL_SCENERY`] for table and baskets, [`LABEL_FIRST_OBJECT`] + k for the k-th
 //! live object ([`SceneFrame::object_at_label`]); labels are ground truth for bookkeeping
@@ -152,11 +154,13 @@ impl CloseupCamera {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ObjectDrawing {
-    /// The object's mesh, as the dataset draws it (default): the camera sees the real shape.
-    #[default]
+    /// The object's mesh, as the dataset draws it: the camera sees the designed shape, which
+    /// the physics' collider only approximates (a decomposition fills a vase's neck, a single
+    /// hull a glass).
     Mesh,
-    /// The object's collider (its simplified convex hull), in the mesh's first colour: the
-    /// camera sees exactly the shape the physics simulates — a glass is then a solid cylinder.
+    /// The object's collider — every convex part, each triangle in the colour of the nearest
+    /// mesh triangle (default): the camera sees exactly the shape the fingers meet.
+    #[default]
     Collider,
 }
 
@@ -172,7 +176,8 @@ pub struct CameraConfig {
     pub crop: CropSpec,
     /// Table-plane fit and object segmentation (default: the dataset's).
     pub segment: SegmentParams,
-    /// What is drawn for an object (default `mesh`; `collider` draws the physics' hull).
+    /// What is drawn for an object (default `collider`, the shape the physics simulates; `mesh`
+    /// draws the dataset's mesh).
     pub draw: ObjectDrawing,
 }
 
@@ -350,31 +355,6 @@ pub fn scenery_meshes(world: &World) -> Vec<Mesh> {
     out
 }
 
-/// The object's collider (its convex hull) as a mesh in the object frame, in the mesh's first
-/// colour.
-pub fn collider_mesh(world: &World, handle: ObjectHandle) -> Result<Mesh, WorldError> {
-    let points: Vec<rapier3d::math::Vector> = world
-        .object_hull_points_m(handle)?
-        .iter()
-        .map(|p| rapier3d::math::Vector::new(p[0], p[1], p[2]))
-        .collect();
-    let color = world
-        .object_mesh(handle)?
-        .colors
-        .first()
-        .copied()
-        .unwrap_or([128; 3]);
-    let mut mesh = Mesh::new();
-    if points.len() >= 4 {
-        let (vertices, faces) = rapier3d::parry::transformation::convex_hull(&points);
-        for [a, b, c] in faces {
-            let v = |i: u32| vertices[i as usize].to_array();
-            mesh.push_triangle(v(a), v(b), v(c), color);
-        }
-    }
-    Ok(mesh)
-}
-
 /// Renders the scenery and every live object of `world` at its current pose, each object drawn
 /// as `draw` says.
 pub fn render_world(
@@ -389,13 +369,6 @@ pub fn render_world(
         });
     }
     let scenery = scenery_meshes(world);
-    let colliders: Vec<Mesh> = match draw {
-        ObjectDrawing::Mesh => Vec::new(),
-        ObjectDrawing::Collider => objects
-            .iter()
-            .map(|&h| collider_mesh(world, h))
-            .collect::<Result<_, _>>()?,
-    };
     let mut items: Vec<RenderItem<'_>> = scenery
         .iter()
         .map(|mesh| RenderItem {
@@ -407,7 +380,7 @@ pub fn render_world(
     for (k, &h) in objects.iter().enumerate() {
         let mesh = match draw {
             ObjectDrawing::Mesh => world.object_mesh(h)?,
-            ObjectDrawing::Collider => &colliders[k],
+            ObjectDrawing::Collider => world.object_collider_mesh(h)?,
         };
         items.push(RenderItem {
             mesh,

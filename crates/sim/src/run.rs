@@ -81,7 +81,7 @@ pub struct SimConfig {
     pub attempt: AttemptConfig,
     /// How tables are set and rounds end.
     pub scenario: ScenarioConfig,
-    /// Objects' collider shapes (default: single convex hulls).
+    /// Objects' collider shapes (default: a convex decomposition of each mesh).
     pub shapes: ShapeConfig,
 }
 
@@ -737,7 +737,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             &cfg.scenario,
             &mut rng,
         )?;
-        let mut cell = Cell::new(world, cfg.robot.clone())?;
+        let mut cell = Cell::at_ready(world, cfg.robot.clone(), &cfg.attempt)?;
         let setup_s = setup_start.elapsed().as_secs_f64();
         let sim_start = cell.world.time_s();
         let first_attempt = self.attempts.len();

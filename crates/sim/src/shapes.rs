@@ -1,16 +1,19 @@
-//! Collision shapes of library objects: the mesh's single convex hull (the default, the world's
-//! [`World::spawn_object`]) or a convex decomposition ([`ObjectShape::Decomposition`]: parry's
-//! VHACD, one compound collider of convex parts via [`World::spawn_object_parts`]).
+//! Collision shapes of library objects: a convex decomposition of the mesh (the default:
+//! parry's VHACD, one compound collider of convex parts via [`World::spawn_object_parts`]) or the
+//! mesh's single convex hull ([`ObjectShape::Hull`], [`World::spawn_object`]).
 //!
-//! Why a decomposition: the cameras draw the real mesh, as the dataset does, so a grasp source
-//! sees a glass's opening, a bowl's rim and a mug's handle — but a single hull fills them. A
-//! finger aimed inside a glass's rim then lands on the hull's lid. With the parts, the physics
-//! has the openings the camera shows. The cost: VHACD takes 0.1–1 s per object (computed once
-//! per library object and run, on first use) and more contacts per step.
+//! Why a decomposition: a single hull fills a bowl, a glass, a mug's opening and the space
+//! inside its handle. Bowls (12–18 cm across) and teapots are then wider than the 85 mm stroke
+//! everywhere, and a rim is no longer there to pinch. With the parts the physics keeps the
+//! openings. VHACD is not exact: it keeps a bowl's rim and a mug's handle but fills a vase's
+//! narrow neck, so the cameras draw the collider ([`crate::camera::ObjectDrawing::Collider`],
+//! the default), and what the camera sees is what the fingers meet.
 //!
-//! **Experimental.** The world's settling and contact tuning was done for single hulls; objects
-//! made of parts were measured to keep jittering on the basket floor (0.3–2.4 rad/s after the
-//! 1000-step settle, sunk ~1.7 mm), so their placements are often judged "not at rest".
+//! Two details make decomposed bodies rest like single hulls: a flat **base slab** (the mesh's
+//! lowest 3 mm as one part; the other parts stop at its top), and the world's short
+//! [`crate::world::WorldConfig::prediction_distance_m`] — without either a bowl made of parts
+//! kept wobbling on the table and in the basket. The cost: VHACD takes 0.1–0.5 s per object
+//! (computed once per library object and run, on first use) and more contacts per step.
 //!
 //! ```
 //! use lgdm_pointcloud::objects::procedural_object;
@@ -33,10 +36,10 @@ use crate::world::{DropRegion, ObjectHandle, World, WorldError};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ObjectShape {
-    /// The mesh's convex hull (default; openings and handles are filled).
-    #[default]
+    /// The mesh's convex hull (openings and handles are filled).
     Hull,
-    /// A convex decomposition of the mesh (VHACD): openings stay open.
+    /// A convex decomposition of the mesh (VHACD; default): openings stay open.
+    #[default]
     Decomposition,
 }
 
@@ -44,7 +47,7 @@ pub enum ObjectShape {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShapeConfig {
-    /// Hull or decomposition (default hull).
+    /// Decomposition or hull (default decomposition).
     pub shape: ObjectShape,
     /// VHACD voxel resolution (default 64, parry's).
     pub resolution: u32,
@@ -57,7 +60,7 @@ pub struct ShapeConfig {
 impl Default for ShapeConfig {
     fn default() -> Self {
         Self {
-            shape: ObjectShape::Hull,
+            shape: ObjectShape::Decomposition,
             resolution: 64,
             concavity: 0.01,
             max_parts: 32,
@@ -82,10 +85,58 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
         ..VHACDParameters::default()
     };
     let d = VHACD::decompose(&params, &vertices, &mesh.triangles, true);
-    d.compute_exact_convex_hulls(&vertices, &mesh.triangles)
+    let mut parts: Vec<Vec<[f32; 3]>> = d
+        .compute_exact_convex_hulls(&vertices, &mesh.triangles)
         .into_iter()
         .map(|(points, _)| points.iter().map(|p| p.to_array()).collect())
-        .collect()
+        .collect();
+    if let Some(base) = base_slab(mesh, BASE_SLAB_M) {
+        // Only the slab reaches the bottom: the parts above it stop at its top face.
+        let top = base.iter().map(|v| v[2]).fold(f32::NEG_INFINITY, f32::max);
+        for part in &mut parts {
+            for v in part.iter_mut() {
+                v[2] = v[2].max(top);
+            }
+        }
+        parts.push(base);
+    }
+    parts
+}
+
+/// Thickness of the base slab added to a decomposition (m).
+const BASE_SLAB_M: f32 = 0.003;
+
+/// The object's footprint as a slab `thickness` thick: the mesh vertices within `thickness` of
+/// its lowest point, and the same lifted by `thickness`. VHACD splits a flat base (a bowl's
+/// foot, a mug's bottom) into several parts that meet the table along slivers, and rapier keeps
+/// such a body wobbling for ever; one flat part under them rests like a single hull does.
+fn base_slab(mesh: &Mesh, thickness: f32) -> Option<Vec<[f32; 3]>> {
+    let lowest = mesh
+        .vertices
+        .iter()
+        .map(|v| v[2])
+        .fold(f32::INFINITY, f32::min);
+    let bottom: Vec<[f32; 3]> = mesh
+        .vertices
+        .iter()
+        .filter(|v| v[2] <= lowest + thickness)
+        .copied()
+        .collect();
+    let (lo, hi) = bottom.iter().fold(
+        ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]),
+        |(lo, hi), v| {
+            (
+                [lo[0].min(v[0]), lo[1].min(v[1])],
+                [hi[0].max(v[0]), hi[1].max(v[1])],
+            )
+        },
+    );
+    // A point or a sliver (an apple's tip, a lying cylinder's line) is no base.
+    if !(hi[0] - lo[0] > 2.0 * thickness && hi[1] - lo[1] > 2.0 * thickness) {
+        return None;
+    }
+    let lifted = bottom.iter().map(|v| [v[0], v[1], v[2] + thickness]);
+    Some(bottom.iter().copied().chain(lifted).collect())
 }
 
 /// Drops library object `index` like [`World::drop_object`] (the same draws from `rng`: x, y,
@@ -126,7 +177,13 @@ impl LibraryShapes {
 
     /// Single hulls for a library of `n` objects.
     pub fn hulls(n: usize) -> Self {
-        Self::new(ShapeConfig::default(), n)
+        Self::new(
+            ShapeConfig {
+                shape: ObjectShape::Hull,
+                ..ShapeConfig::default()
+            },
+            n,
+        )
     }
 
     /// The config.

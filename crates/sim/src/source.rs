@@ -98,11 +98,28 @@ pub trait GraspSource {
     ) -> Result<Vec<DecodedGrasp>, SourceError>;
 }
 
+/// Opening axes the robot's analytic source tries per centre: every 5° (the labeller's 12, every
+/// 15°, leave a box up to 7.5° off its short axis, which widens a 20 cm wide cereal box's
+/// cross-section by ~2.6 cm: more than the 85 mm stroke has to spare over its 6 cm depth).
+pub const ROBOT_NUM_ANGLES: usize = 36;
+
 /// Antipodal grasps from the crop's depth image ([`analytic_grasps`]).
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AnalyticSource {
-    /// Search parameters (`num_grasps` is replaced by the `k` asked for).
+    /// Search parameters (`num_grasps` is replaced by the `k` asked for; default: the
+    /// labeller's, with [`ROBOT_NUM_ANGLES`] axes).
     pub params: AnalyticParams,
+}
+
+impl Default for AnalyticSource {
+    fn default() -> Self {
+        Self {
+            params: AnalyticParams {
+                num_angles: ROBOT_NUM_ANGLES,
+                ..AnalyticParams::default()
+            },
+        }
+    }
 }
 
 impl AnalyticSource {

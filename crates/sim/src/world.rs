@@ -299,6 +299,14 @@ pub struct WorldConfig {
     /// default, 0.05, keeps stale contact anchors over centimetres: a finger that passed beside
     /// a box's top edge during the descent then stops 1 cm short of the box when it closes.
     pub contact_recycle_distance_m: f32,
+    /// Bodies closer than this get predictive (speculative) contacts (m; default 0.002; rapier's
+    /// default is 0.02). With 2 cm every convex part of a decomposed bowl or mug within 2 cm of
+    /// the table gets a speculative contact, and rapier keeps such a body wobbling at 0.5–3 rad/s
+    /// for ever; at 5 mm a teapot still wobbles, at 2 mm every library object rests as its
+    /// single hull does. Faster bodies then overlap by a few millimetres for a step (an object
+    /// released 3 cm above the basket floor lands at 0.8 m/s, 3.2 mm per step) and are pushed
+    /// back out: every fixed plate is thicker than that.
+    pub prediction_distance_m: f32,
     /// Let bodies at rest fall asleep (default true; a touch or a joint wakes them).
     pub allow_sleep: bool,
     /// The table.
@@ -338,6 +346,7 @@ impl Default for WorldConfig {
             warmstart_joints: true,
             contact_recycling: true,
             contact_recycle_distance_m: 0.001,
+            prediction_distance_m: 0.002,
             allow_sleep: true,
             table: TableConfig::default(),
             baskets: vec![basket.clone(), basket.mirrored_x()],
@@ -401,6 +410,7 @@ impl WorldConfig {
             "contact_recycle_distance_m",
             self.contact_recycle_distance_m,
         )?;
+        positive("prediction_distance_m", self.prediction_distance_m)?;
         positive("dt_s", self.dt_s)?;
         if self.dt_s > 0.05 {
             return Err(WorldError::InvalidConfig {
@@ -556,6 +566,8 @@ struct ObjectEntry {
     mesh: Mesh,
     body: RigidBodyHandle,
     collider: ColliderHandle,
+    /// The collider drawn as triangles in the mesh's colours, built on first use.
+    drawn_collider: std::sync::OnceLock<Mesh>,
 }
 
 /// Where and how [`World::drop_object`] drops an object.
@@ -684,6 +696,7 @@ impl World {
         p.warmstart_coefficient = config.warmstart_coefficient;
         p.contact_recycling = config.contact_recycling;
         p.normalized_contact_recycle_distance = config.contact_recycle_distance_m;
+        p.normalized_prediction_distance = config.prediction_distance_m;
         let mut world = Self {
             config,
             physics,
@@ -937,6 +950,7 @@ impl World {
             mesh: mesh.clone(),
             body,
             collider,
+            drawn_collider: std::sync::OnceLock::new(),
         }));
         handle
     }
@@ -1058,6 +1072,32 @@ impl World {
             .as_convex_polyhedron()
             .map(|hull| hull.points().iter().map(|p| p.to_array()).collect())
             .unwrap_or_default())
+    }
+
+    /// The object's collider as a triangle mesh in the object frame — every convex part of it,
+    /// each triangle coloured like the nearest mesh triangle — so a camera can draw the shape
+    /// the physics has. Built once per object, on first use.
+    pub fn object_collider_mesh(&self, handle: ObjectHandle) -> Result<&Mesh, WorldError> {
+        let entry = self.entry(handle)?;
+        Ok(entry.drawn_collider.get_or_init(|| {
+            let shape = self.physics.colliders[entry.collider].shape();
+            let mut parts: Vec<Vec<RVec>> = Vec::new();
+            if let Some(compound) = shape.as_compound() {
+                for (pose, part) in compound.shapes() {
+                    if let Some(hull) = part.as_convex_polyhedron() {
+                        parts.push(
+                            hull.points()
+                                .iter()
+                                .map(|p| pose.transform_point(*p))
+                                .collect(),
+                        );
+                    }
+                }
+            } else if let Some(hull) = shape.as_convex_polyhedron() {
+                parts.push(hull.points().to_vec());
+            }
+            collider_drawing(&parts, &entry.mesh)
+        }))
     }
 
     /// The object's pose `world_from_object` (the mesh frame in the world).
@@ -1199,6 +1239,44 @@ fn hull_points(name: &str, mesh: &Mesh) -> Result<Vec<RVec>, WorldError> {
 /// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
 /// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
 /// have no hull.
+/// Triangles of the convex hulls of `parts` (object frame), each coloured like the mesh triangle
+/// nearest its centroid.
+fn collider_drawing(parts: &[Vec<RVec>], mesh: &Mesh) -> Mesh {
+    use rapier3d::parry::query::PointQuery;
+    use rapier3d::parry::shape::Triangle;
+    let mesh_triangles: Vec<(Triangle, [u8; 3])> = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.colors)
+        .map(|(t, c)| {
+            let v = |i: u32| RVec::from_array(mesh.vertices[i as usize]);
+            (Triangle::new(v(t[0]), v(t[1]), v(t[2])), *c)
+        })
+        .collect();
+    let mut out = Mesh::new();
+    for part in parts {
+        if part.len() < 4 {
+            continue;
+        }
+        let (vertices, faces) = rapier3d::parry::transformation::convex_hull(part);
+        for [a, b, c] in faces {
+            let (a, b, c) = (
+                vertices[a as usize],
+                vertices[b as usize],
+                vertices[c as usize],
+            );
+            let centroid = (a + b + c) / 3.0;
+            let color = mesh_triangles
+                .iter()
+                .map(|(t, c)| (t.distance_to_local_point(centroid, true), *c))
+                .min_by(|x, y| x.0.total_cmp(&y.0))
+                .map_or([128; 3], |(_, c)| c);
+            out.push_triangle(a.to_array(), b.to_array(), c.to_array(), color);
+        }
+    }
+    out
+}
+
 fn thinned_hull(points: &[RVec], max_face: usize) -> Option<SharedShape> {
     let mut shape = SharedShape::convex_hull(points)?;
     for _ in 0..3 {

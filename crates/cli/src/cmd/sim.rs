@@ -75,18 +75,19 @@ pub enum GraspArg {
 /// What the cameras draw for an object (`--draw`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum DrawArg {
-    /// The object's mesh, as in the dataset (default).
+    /// The object's mesh, as in the dataset (the collider only approximates it).
     Mesh,
-    /// The physics collider (convex hull): the camera sees what the physics simulates.
+    /// The physics collider in the mesh's colours (default): the camera sees what the fingers
+    /// meet.
     Collider,
 }
 
 /// The objects' collider shapes (`--shapes`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ShapesArg {
-    /// Each object's convex hull (default): openings and handles are filled.
+    /// Each object's convex hull: openings and handles are filled.
     Hull,
-    /// A convex decomposition (VHACD, 0.1–1 s per object once): openings stay open.
+    /// A convex decomposition (default; VHACD, 0.1–0.5 s per object once): openings stay open.
     Decomposition,
 }
 
@@ -122,10 +123,10 @@ pub struct GraspArgs {
     #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
     pub instances: usize,
     /// What the cameras draw for an object.
-    #[arg(long, value_enum, default_value_t = DrawArg::Mesh)]
+    #[arg(long, value_enum, default_value_t = DrawArg::Collider)]
     pub draw: DrawArg,
     /// The objects' collider shapes in the physics.
-    #[arg(long, value_enum, default_value_t = ShapesArg::Hull)]
+    #[arg(long, value_enum, default_value_t = ShapesArg::Decomposition)]
     pub shapes: ShapesArg,
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
