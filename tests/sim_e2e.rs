@@ -1,7 +1,8 @@
 //! End-to-end tests of `lgdm sim grasp`, driving the real binary: a short run of each scenario
 //! writes `results.json` with the documented schema (attempts, rounds, summary rates with
 //! Wilson intervals, per category, per failure reason), the summary and the plots; the same seed
-//! twice gives the same results (wall-clock fields aside); bad input (`--rounds 0`, an unknown
+//! twice gives the same results (wall-clock fields aside), also when the second run is recorded
+//! (`--record`: an MCAP and a storyboard per round in `rounds/`); bad input (`--rounds 0`, an unknown
 //! scenario, a mesh whose hull cannot be built, an object larger than the table, a foreign
 //! `--out`) fails with a message naming the problem and writes nothing.
 //!
@@ -204,8 +205,25 @@ fn isolated_analytic_writes_results_and_same_seed_gives_same_results() {
         "{cats:?}"
     );
 
-    check(sim(&b, &args), "sim grasp isolated again");
+    // Again, recorded: the same results, and an MCAP and a storyboard per round.
+    let mut recorded: Vec<&str> = args.to_vec();
+    recorded.push("--record");
+    check(sim(&b, &recorded), "sim grasp isolated --record");
     assert_eq!(without_wall(&ra), without_wall(&read_results(&b)));
+    for round in ["round-0000", "round-0001"] {
+        let mcap = std::fs::read(b.join("rounds").join(format!("{round}.mcap"))).unwrap();
+        assert!(
+            mcap.starts_with(b"\x89MCAP0\r\n") && mcap.len() > 10_000,
+            "{round}"
+        );
+        let png = std::fs::read(b.join("rounds").join(format!("{round}.png"))).unwrap();
+        assert!(png.starts_with(b"\x89PNG"), "{round}");
+    }
+    // A recorded run directory is replaced with --force like any other run.
+    let mut forced: Vec<&str> = args.to_vec();
+    forced.push("--force");
+    check(sim(&b, &forced), "sim grasp --force over a recorded run");
+    assert!(!b.join("rounds").exists());
 
     // The same directory again: refused, then replaced with --force.
     let out = sim(&a, &args);

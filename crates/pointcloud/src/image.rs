@@ -158,16 +158,25 @@ impl RgbImage {
 
     /// Writes the image as an 8-bit RGB PNG (atomically: temp file, then rename).
     pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
+        write_atomic(path, |file| self.encode_png_to(file)).map_err(|e| err(path, e))
+    }
+
+    /// The image as the bytes of an 8-bit RGB PNG file (the bytes [`RgbImage::write_png`]
+    /// writes); an error for an empty image.
+    pub fn encode_png(&self) -> std::io::Result<Vec<u8>> {
+        let mut out = Vec::new();
+        self.encode_png_to(&mut out)?;
+        Ok(out)
+    }
+
+    fn encode_png_to(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
         let bytes: Vec<u8> = self.data.iter().flatten().copied().collect();
-        write_atomic(path, |file| {
-            let mut enc = png::Encoder::new(file, self.width as u32, self.height as u32);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut w = enc.write_header().map_err(std::io::Error::other)?;
-            w.write_image_data(&bytes).map_err(std::io::Error::other)?;
-            w.finish().map_err(std::io::Error::other)
-        })
-        .map_err(|e| err(path, e))
+        let mut enc = png::Encoder::new(out, self.width as u32, self.height as u32);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(&bytes).map_err(std::io::Error::other)?;
+        w.finish().map_err(std::io::Error::other)
     }
 
     /// Reads an 8-bit RGB or RGBA PNG (alpha dropped). A header declaring more pixels than

@@ -375,6 +375,11 @@ impl Gripper {
         })
     }
 
+    /// The palm body and the finger bodies (finger 0 on −x, finger 1 on +x), for the recorder.
+    pub(crate) fn bodies(&self) -> (RigidBodyHandle, [RigidBodyHandle; 2]) {
+        (self.palm_body, self.fingers.map(|f| f.body))
+    }
+
     /// The config.
     pub fn config(&self) -> &GripperConfig {
         &self.config

@@ -28,6 +28,9 @@
 //!   decomposition that keeps openings and handles.
 //! - [`run`]: rounds of a scenario, `results.json` (rates with Wilson intervals, per category,
 //!   per failure reason) in a run directory.
+//! - [`record`]: optional recording of rounds for Foxglove — one MCAP per round (`/tf` of every
+//!   body, the scene, camera images, the chosen grasp, events; sim time, so same seed → same
+//!   bytes) and a PNG storyboard per round.
 //!
 //! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
 //! teleported. Physics is single-threaded and deterministic: same inputs, same bits.
@@ -78,6 +81,7 @@ pub mod camera;
 pub mod gripper;
 pub mod ik;
 pub mod perception;
+pub mod record;
 pub mod robot;
 pub mod run;
 pub mod scenario;

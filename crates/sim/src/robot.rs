@@ -262,6 +262,11 @@ impl Robot {
         &mut self.gripper
     }
 
+    /// The link bodies 1..6 (for the recorder).
+    pub(crate) fn link_bodies(&self) -> [RigidBodyHandle; DOF] {
+        self.links
+    }
+
     /// The commanded joints (rad).
     pub fn joints_rad(&self) -> Joints {
         self.q_rad

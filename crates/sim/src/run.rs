@@ -48,6 +48,10 @@ use crate::attempt::{
 };
 use crate::camera::CameraConfig;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
+use crate::record::{
+    GraspShown, RecordCamera, RecordConfig, RecordError, Recorder, RoundRecording, RoundSink,
+    basket_camera,
+};
 use crate::robot::RobotConfig;
 use crate::scenario::{
     PlacedObject, Scenario, ScenarioConfig, check_library, on_table, round_objects, set_table,
@@ -162,6 +166,9 @@ pub enum SimError {
     /// The grasp source failed.
     #[error("grasp source: {0}")]
     Source(#[from] SourceError),
+    /// Recording a round failed.
+    #[error(transparent)]
+    Record(#[from] RecordError),
     /// The run directory cannot be used or written.
     #[error("run directory {}: {reason}", path.display())]
     RunDir {
@@ -546,6 +553,10 @@ struct Runner<'a, F: FnMut(&RunProgress)> {
     attempts: Vec<AttemptRecord>,
     rounds_done: usize,
     on_progress: F,
+    /// What to record and where (none: recording off).
+    record: Option<(&'a RecordConfig, &'a mut dyn RoundSink)>,
+    /// The recorder of the round in progress, when it is recorded.
+    recorder: Option<Recorder>,
 }
 
 /// The timer and counters of one attempt in progress.
@@ -582,6 +593,9 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             self.perception.config().render_overview(&cell.world)
         });
         let shot = shot.map_err(PerceptionError::from)?;
+        if let Some(r) = &self.recorder {
+            r.camera_shot(&cell.world, RecordCamera::Overview, &shot);
+        }
         Ok(clock
             .wall
             .time(Work::Perception, || self.perception.segment_scene(shot))?)
@@ -602,6 +616,9 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             self.perception.config().render_closeup(&cell.world, point)
         });
         let shot = shot.map_err(PerceptionError::from)?;
+        if let Some(r) = &self.recorder {
+            r.camera_shot(&cell.world, RecordCamera::Closeup, &shot);
+        }
         match clock.wall.time(Work::Perception, || {
             self.perception.view_from(shot, index, point)
         }) {
@@ -682,6 +699,9 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             sim_time_s: cell.world.time_s() - clock.sim_start_s,
             wall: clock.wall,
         });
+        if let (Some(r), Some(a)) = (&self.recorder, self.attempts.last()) {
+            r.attempt_recorded(attempt_caption(a));
+        }
         self.progress();
     }
 
@@ -705,8 +725,39 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let plan = clock.wall.time(Work::Planning, || {
             plan_grasp(cell, view, &candidate.world, cfg)
         });
+        let object = view
+            .object
+            .and_then(|h| cell.world.object_name(h).ok())
+            .map(str::to_string);
+        let gripper = cell.robot.gripper().config().clone();
+        let shown = GraspShown {
+            plan: &plan,
+            rank: candidate.rank,
+            object: object.as_deref(),
+            gripper: &gripper,
+            crop: Some((&view.crop, candidate.crop.rectangle())),
+        };
+        if let Some(r) = &self.recorder {
+            r.grasp_planned(&cell.world, &shown);
+        }
         let exec = execute(cell, &plan, view.object, cfg, &mut clock.wall)?;
         park(cell, plan.pregrasp_z_m, cfg, &mut clock.wall)?;
+        if let Some(r) = &self.recorder {
+            // The outcome as the cameras see it, before the table is reset.
+            let cameras = self.perception.config();
+            let mut after = vec![(
+                RecordCamera::Overview,
+                cameras
+                    .render_overview(&cell.world)
+                    .map_err(PerceptionError::from)?,
+            )];
+            if let Some(camera) = basket_camera(&cell.world, cfg.target_basket) {
+                let shot = crate::camera::render_world(&cell.world, &camera, cameras.draw)
+                    .map_err(PerceptionError::from)?;
+                after.push((RecordCamera::Basket, shot));
+            }
+            r.grasp_done(&cell.world, &shown, &exec, &after);
+        }
         let record = GraspRecord {
             rank: candidate.rank,
             crop: candidate.crop,
@@ -728,6 +779,18 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let picks = round_objects(scenario, self.library, round, &cfg.scenario, &mut rng);
         let setup_start = Instant::now();
         let mut world = World::new(cfg.world.clone())?;
+        self.recorder = match &self.record {
+            Some((config, _)) if config.records_round(round) => {
+                let metadata = BTreeMap::from([
+                    ("scenario".to_string(), scenario.as_str().to_string()),
+                    ("grasp_source".to_string(), self.source.name().to_string()),
+                    ("seed".to_string(), self.spec.seed.to_string()),
+                    ("objects".to_string(), self.spec.objects.clone()),
+                ]);
+                Some(Recorder::start(&mut world, config, round, metadata)?)
+            }
+            _ => None,
+        };
         let objects = set_table(
             &mut world,
             scenario,
@@ -738,6 +801,15 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             &mut rng,
         )?;
         let mut cell = Cell::at_ready(world, cfg.robot.clone(), &cfg.attempt)?;
+        if let Some(r) = &self.recorder {
+            r.add_robot(&cell.world, &cell.robot);
+            let names: Vec<&str> = objects.iter().map(|o| o.name.as_str()).collect();
+            r.log(
+                &cell.world,
+                crate::record::LogLevel::Info,
+                &format!("table set: {}", names.join(", ")),
+            );
+        }
         let setup_s = setup_start.elapsed().as_secs_f64();
         let sim_start = cell.world.time_s();
         let first_attempt = self.attempts.len();
@@ -754,19 +826,23 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             wall.add(&a.wall);
         }
         wall.finish(round_start);
-        Ok((
-            RoundRecord {
-                round,
-                objects: objects.iter().map(|o| o.name.clone()).collect(),
-                attempts: self.attempts.len() - first_attempt,
-                placed,
-                left_table,
-                ended_by,
-                sim_time_s: cell.world.time_s() - sim_start,
-                wall,
-            },
-            setup_s,
-        ))
+        let record = RoundRecord {
+            round,
+            objects: objects.iter().map(|o| o.name.clone()).collect(),
+            attempts: self.attempts.len() - first_attempt,
+            placed,
+            left_table,
+            ended_by,
+            sim_time_s: cell.world.time_s() - sim_start,
+            wall,
+        };
+        if let Some(recorder) = self.recorder.take() {
+            let recording = recorder.finish(&mut cell.world, &round_summary(&record))?;
+            if let Some((_, sink)) = self.record.as_mut() {
+                sink.write_round(recording)?;
+            }
+        }
+        Ok((record, setup_s))
     }
 
     fn isolated(
@@ -957,6 +1033,30 @@ pub fn run_trials(
     source: &mut dyn GraspSource,
     on_progress: impl FnMut(&RunProgress),
 ) -> Result<RunResults, SimError> {
+    play(spec, library, source, on_progress, None)
+}
+
+/// [`run_trials`], recording the rounds `record` selects into `sink` as they end (see
+/// [`crate::record`]). The results are those of [`run_trials`], bit for bit.
+pub fn run_trials_recorded(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    source: &mut dyn GraspSource,
+    on_progress: impl FnMut(&RunProgress),
+    record: &RecordConfig,
+    sink: &mut dyn RoundSink,
+) -> Result<RunResults, SimError> {
+    record.validate()?;
+    play(spec, library, source, on_progress, Some((record, sink)))
+}
+
+fn play<'a>(
+    spec: &'a RunSpec,
+    library: &'a [ObjectModel],
+    source: &'a mut dyn GraspSource,
+    on_progress: impl FnMut(&RunProgress),
+    record: Option<(&'a RecordConfig, &'a mut dyn RoundSink)>,
+) -> Result<RunResults, SimError> {
     let start = Instant::now();
     if spec.rounds == 0 {
         return Err(SimError::NoRounds);
@@ -977,6 +1077,8 @@ pub fn run_trials(
         attempts: Vec::new(),
         rounds_done: 0,
         on_progress,
+        record,
+        recorder: None,
     };
     let mut rounds = Vec::with_capacity(spec.rounds);
     let mut setup_s = 0.0;
@@ -1021,6 +1123,61 @@ pub fn run_trials(
     })
 }
 
+/// A storyboard caption of an attempt: `attempt 2 (try 1, rank 1) mug_01: grasp failed (missed)`.
+fn attempt_caption(a: &AttemptRecord) -> String {
+    let object = a.object.as_deref().unwrap_or("no object");
+    let outcome = match (a.grasp_success, a.placement_success, a.reason) {
+        (true, true, _) => "grasp ok, placed".to_string(),
+        (true, false, r) => format!(
+            "grasp ok, not placed ({})",
+            r.map_or("unknown", FailureReason::as_str)
+        ),
+        (false, _, r) => format!(
+            "grasp failed ({})",
+            r.map_or("unknown", FailureReason::as_str)
+        ),
+    };
+    let rank = a
+        .grasp
+        .as_ref()
+        .map_or(String::new(), |g| format!(", rank {}", g.rank));
+    let grasped = a
+        .grasped_object
+        .as_deref()
+        .map_or(String::new(), |g| format!(" (pinched {g})"));
+    format!(
+        "attempt {} (try {}{rank}) {object}{grasped}: {outcome}",
+        a.index, a.try_in_round
+    )
+}
+
+/// How a round ended, for its recording: `cleared, placed 1 of 1`.
+fn round_summary(r: &RoundRecord) -> String {
+    let ended = serde_json::to_value(r.ended_by)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    let mut text = format!(
+        "{ended}, placed {} of {}, {} attempts",
+        r.placed,
+        r.objects.len(),
+        r.attempts
+    );
+    if !r.left_table.is_empty() {
+        text.push_str(&format!(", left the table: {}", r.left_table.join(", ")));
+    }
+    text
+}
+
+/// The folder of a run directory that holds the recorded rounds.
+pub const ROUNDS_DIR: &str = "rounds";
+
+/// Whether `name` is a file of [`ROUNDS_DIR`] (`round-NNNN.mcap` or `.png`, or a temporary file).
+fn is_round_entry(name: &str) -> bool {
+    (name.starts_with("round-") && (name.ends_with(".mcap") || name.ends_with(".png")))
+        || (name.starts_with('.') && name.ends_with(".tmp"))
+}
+
 /// Whether `name` is a file a sim run directory holds (what `force` may remove).
 fn is_run_entry(name: &str) -> bool {
     matches!(
@@ -1053,10 +1210,30 @@ impl SimRunDir {
             .map_err(|e| dir_error(dir, e))?
             .ok_or_else(|| dir_error(dir, "another lgdm process is writing this run directory"))?;
         let mut old = Vec::new();
+        let mut old_dirs = Vec::new();
         for entry in std::fs::read_dir(dir).map_err(|e| dir_error(dir, e))? {
             let entry = entry.map_err(|e| dir_error(dir, e))?;
             let name = entry.file_name().to_string_lossy().into_owned();
             if name == lgdm_pointcloud::LOCK_FILE {
+                continue;
+            }
+            if name == ROUNDS_DIR && entry.path().is_dir() {
+                // Recorded rounds: only round files may be in there.
+                let rounds = entry.path();
+                for inner in std::fs::read_dir(&rounds).map_err(|e| dir_error(&rounds, e))? {
+                    let inner = inner.map_err(|e| dir_error(&rounds, e))?;
+                    let inner_name = inner.file_name().to_string_lossy().into_owned();
+                    if !is_round_entry(&inner_name) || inner.path().is_dir() {
+                        return Err(dir_error(
+                            dir,
+                            format!(
+                                "holds {ROUNDS_DIR}/{inner_name}, which is not part of an lgdm sim run; choose another directory"
+                            ),
+                        ));
+                    }
+                    old.push(inner.path());
+                }
+                old_dirs.push(rounds);
                 continue;
             }
             if !is_run_entry(&name) || entry.path().is_dir() {
@@ -1069,7 +1246,7 @@ impl SimRunDir {
             }
             old.push(entry.path());
         }
-        if !old.is_empty() {
+        if !old.is_empty() || !old_dirs.is_empty() {
             if !force {
                 return Err(dir_error(
                     dir,
@@ -1079,6 +1256,9 @@ impl SimRunDir {
             old.sort();
             for path in old {
                 std::fs::remove_file(&path).map_err(|e| dir_error(&path, e))?;
+            }
+            for path in old_dirs {
+                std::fs::remove_dir(&path).map_err(|e| dir_error(&path, e))?;
             }
         }
         Ok(SimRunDir {
@@ -1092,11 +1272,18 @@ impl SimRunDir {
         &self.dir
     }
 
-    /// Writes `name` in the directory atomically (temporary file, then rename).
+    /// Writes `name` (a file name, or a path such as `rounds/round-0000.mcap` whose folders
+    /// are created) in the directory atomically (temporary file, then rename).
     pub fn write_file(&self, name: &str, bytes: &[u8]) -> Result<(), SimError> {
         use std::io::Write;
         let path = self.dir.join(name);
-        let prefix = format!(".{name}.");
+        let folder = path.parent().unwrap_or(&self.dir);
+        std::fs::create_dir_all(folder).map_err(|e| dir_error(folder, e))?;
+        let file_name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| dir_error(&path, "not a file name"))?;
+        let prefix = format!(".{file_name}.");
         let mut builder = tempfile::Builder::new();
         builder.prefix(&prefix).suffix(".tmp");
         #[cfg(unix)]
@@ -1105,7 +1292,7 @@ impl SimRunDir {
             builder.permissions(std::fs::Permissions::from_mode(0o666));
         }
         let mut tmp = builder
-            .tempfile_in(&self.dir)
+            .tempfile_in(folder)
             .map_err(|e| dir_error(&path, e))?;
         tmp.write_all(bytes).map_err(|e| dir_error(&path, e))?;
         tmp.as_file().sync_all().map_err(|e| dir_error(&path, e))?;
@@ -1116,5 +1303,25 @@ impl SimRunDir {
     /// Writes `results.json`.
     pub fn write_results(&self, results: &RunResults) -> Result<(), SimError> {
         self.write_file(RESULTS_FILE, results.to_json().as_bytes())
+    }
+}
+
+/// A run directory stores recorded rounds as `rounds/round-NNNN.mcap` and `.png`.
+impl RoundSink for SimRunDir {
+    fn write_round(&mut self, round: RoundRecording) -> Result<(), RecordError> {
+        let stem = format!("{ROUNDS_DIR}/{}", round.file_stem());
+        let failed = |e: SimError| RecordError::Write {
+            path: self.dir.join(&stem).display().to_string(),
+            reason: e.to_string(),
+        };
+        self.write_file(&format!("{stem}.mcap"), &round.mcap)
+            .map_err(failed)?;
+        let png = round
+            .storyboard
+            .encode_png()
+            .map_err(|e| failed(dir_error(&self.dir, e)))?;
+        self.write_file(&format!("{stem}.png"), &png)
+            .map_err(failed)?;
+        Ok(())
     }
 }

@@ -660,6 +660,15 @@ pub struct World {
     objects: Vec<Option<ObjectEntry>>,
     scenery: Vec<ColliderHandle>,
     steps: u64,
+    observer: Option<Box<dyn StepObserver>>,
+}
+
+/// Called after every physics step with the world's new state, read-only — e.g. the recorder
+/// of [`crate::record`] sampling body poses. Set with [`World::set_step_observer`]; none by
+/// default, and then a step costs nothing extra.
+pub trait StepObserver: Send + Sync {
+    /// Called after [`World::step`] (the step count already advanced).
+    fn after_step(&mut self, world: &World);
 }
 
 impl std::fmt::Debug for World {
@@ -703,6 +712,7 @@ impl World {
             objects: Vec::new(),
             scenery: Vec::new(),
             steps: 0,
+            observer: None,
         };
         world.build_scenery();
         Ok(world)
@@ -811,6 +821,18 @@ impl World {
     pub fn step(&mut self) {
         self.physics.step();
         self.steps += 1;
+        if let Some(mut observer) = self.observer.take() {
+            observer.after_step(self);
+            self.observer = Some(observer);
+        }
+    }
+
+    /// Installs (or with `None` removes) the [`StepObserver`]; returns the previous one.
+    pub fn set_step_observer(
+        &mut self,
+        observer: Option<Box<dyn StepObserver>>,
+    ) -> Option<Box<dyn StepObserver>> {
+        std::mem::replace(&mut self.observer, observer)
     }
 
     /// Spawns `mesh` (object frame: metres, z up) as a dynamic body at `world_from_object`, with

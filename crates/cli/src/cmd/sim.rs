@@ -8,6 +8,11 @@
 //! built from `--seed`) or the meshes of `--meshes DIR` (the `gen-dataset` layout). Every input
 //! is checked before the run directory is touched: `--rounds 0`, a mesh whose convex hull
 //! cannot be built or an object larger than the table are errors naming the problem.
+//!
+//! `--record` also writes every round (or the first `--record-rounds N`) for Foxglove:
+//! `rounds/round-NNNN.mcap` (transforms of every body, the scene, camera images, the chosen
+//! grasp, events; sim time, so the same seed gives the same bytes) and `rounds/round-NNNN.png`,
+//! a storyboard of the round's attempts ([`lgdm_sim::record`]).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,7 +22,11 @@ use clap::{Args as ClapArgs, Subcommand, ValueEnum};
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::objects::{CATEGORIES, ObjectModel, procedural_library};
 use lgdm_sim::camera::ObjectDrawing;
-use lgdm_sim::run::{RunProgress, RunResults, RunSpec, SimRunDir, builtin_source, run_trials};
+use lgdm_sim::record::RecordConfig;
+use lgdm_sim::run::{
+    ROUNDS_DIR, RunProgress, RunResults, RunSpec, SimRunDir, builtin_source, run_trials,
+    run_trials_recorded,
+};
 use lgdm_sim::scenario::{Scenario, check_library};
 use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::GraspSource;
@@ -128,6 +137,13 @@ pub struct GraspArgs {
     /// The objects' collider shapes in the physics.
     #[arg(long, value_enum, default_value_t = ShapesArg::Decomposition)]
     pub shapes: ShapesArg,
+    /// Record the rounds for Foxglove: rounds/round-NNNN.mcap and a storyboard
+    /// rounds/round-NNNN.png per round.
+    #[arg(long)]
+    pub record: bool,
+    /// Record only the first N rounds (implies --record).
+    #[arg(long, value_name = "N")]
+    pub record_rounds: Option<usize>,
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
@@ -224,12 +240,27 @@ fn grasp(args: GraspArgs) -> Result<()> {
     };
     // Every object must be simulable before the run directory is touched.
     check_library(&spec.config.world, &objects).context("the object library")?;
-    let run_dir = SimRunDir::create(&args.out, args.force)?;
+    let record = (args.record || args.record_rounds.is_some()).then(|| RecordConfig {
+        first_rounds: args.record_rounds,
+        ..RecordConfig::default()
+    });
+    let mut run_dir = SimRunDir::create(&args.out, args.force)?;
     let started = Instant::now();
     let mut task = reporter.bar("sim grasp", args.rounds as u64);
-    let results = run_trials(&spec, &objects, source.as_mut(), |p: &RunProgress| {
+    let progress = |p: &RunProgress| {
         task.update_coarse("rounds", p.rounds_done as u64, p.rounds as u64);
-    });
+    };
+    let results = match &record {
+        None => run_trials(&spec, &objects, source.as_mut(), progress),
+        Some(config) => run_trials_recorded(
+            &spec,
+            &objects,
+            source.as_mut(),
+            progress,
+            config,
+            &mut run_dir,
+        ),
+    };
     task.finish();
     let results = results.context("running the grasp trials")?;
     run_dir.write_results(&results)?;
@@ -249,6 +280,12 @@ fn grasp(args: GraspArgs) -> Result<()> {
     }));
     if args.progress != ProgressMode::Jsonl {
         println!("{table}");
+        if record.is_some() {
+            println!(
+                "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
+                args.out.join(ROUNDS_DIR).display()
+            );
+        }
         println!("wrote {}", args.out.display());
     }
     Ok(())

@@ -21,9 +21,41 @@ pub const POINT_CLOUD_FRAME_ID: &str = "camera_optical";
 
 /// Name, encoding and descriptor bytes of the `foxglove.PointCloud` schema.
 pub fn point_cloud_schema() -> (String, String, Vec<u8>) {
-    let schema =
-        foxglove::messages::PointCloud::get_schema().expect("foxglove.PointCloud has a schema");
+    foxglove_schema::<foxglove::messages::PointCloud>()
+}
+
+/// Name, encoding and descriptor bytes of one of foxglove's well-known schemas (e.g.
+/// `foxglove.PointCloud`, `foxglove.FrameTransforms`), as an MCAP schema record wants them.
+pub fn foxglove_schema<T: Encode>() -> (String, String, Vec<u8>) {
+    let schema = T::get_schema().expect("foxglove's well-known messages have a schema");
     (schema.name, schema.encoding, schema.data.into_owned())
+}
+
+/// A foxglove timestamp `ns` nanoseconds after the epoch (for sim time: after the start).
+pub fn foxglove_timestamp(ns: u64) -> Timestamp {
+    Timestamp::new(
+        u32::try_from(ns / 1_000_000_000).unwrap_or(u32::MAX),
+        (ns % 1_000_000_000) as u32,
+    )
+}
+
+/// An lgdm pose (`a_from_b`) as a foxglove pose: b's origin and orientation in a.
+pub fn foxglove_pose(pose: &crate::math::Pose) -> FgPose {
+    let t = pose.translation.vector;
+    let q = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    FgPose {
+        position: Some(Vector3 {
+            x: f64::from(t.x),
+            y: f64::from(t.y),
+            z: f64::from(t.z),
+        }),
+        orientation: Some(Quaternion {
+            x: f64::from(q.i),
+            y: f64::from(q.j),
+            z: f64::from(q.k),
+            w: f64::from(q.w),
+        }),
+    }
 }
 
 fn field(name: &str, offset: u32, ty: NumericType) -> PackedElementField {
@@ -62,24 +94,9 @@ pub fn encode_point_cloud(cloud: &PointCloud, timestamp_ns: u64) -> Vec<u8> {
         ]);
     }
     let msg = foxglove::messages::PointCloud {
-        timestamp: Some(Timestamp::new(
-            (timestamp_ns / 1_000_000_000) as u32,
-            (timestamp_ns % 1_000_000_000) as u32,
-        )),
+        timestamp: Some(foxglove_timestamp(timestamp_ns)),
         frame_id: POINT_CLOUD_FRAME_ID.to_string(),
-        pose: Some(FgPose {
-            position: Some(Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-            }),
-            orientation: Some(Quaternion {
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-                w: 1.0,
-            }),
-        }),
+        pose: Some(foxglove_pose(&crate::math::Pose::identity())),
         point_stride: stride as u32,
         fields,
         data: data.into(),

@@ -40,8 +40,8 @@ pub use crate::progress::Progress;
 use crate::render::Camera;
 pub use generate::{LoadedObjects, check_output_dir, generate, load_objects, render_views};
 pub use mcap_io::{
-    POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud,
-    point_cloud_schema,
+    POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud, foxglove_pose,
+    foxglove_schema, foxglove_timestamp, point_cloud_schema,
 };
 pub use spec::{CameraSpec, CollectionSpec, DatasetSpec, Split, standard_collections};
 

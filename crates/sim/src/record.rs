@@ -1,0 +1,1221 @@
+//! Recording of grasp rounds for Foxglove: one MCAP file per round (`/tf` of every body, a
+//! scene of the meshes and shapes, the camera images with their calibration, the chosen grasp as
+//! a marker, attempt events) and a PNG storyboard per round (the crop with the chosen grasp
+//! drawn, the overview before and after the attempt, the target basket after it, and a caption
+//! of the outcome).
+//!
+//! **Same seed, same bytes.** Every time stamp (MCAP `log_time` and `publish_time`, and each
+//! message's `timestamp`) is sim time — the world's step count × dt — never the wall clock.
+//! Channels are added in a fixed order, entities and frames are listed in spawn order, chunks
+//! are zstd-compressed on the calling thread at zstd's default level; so the same round gives
+//! the same bytes. Recording only reads the world: a run's `results.json` is the same with and
+//! without it.
+//!
+//! **Cost.** Off by default. When on, a [`StepObserver`] samples the body poses every
+//! 1/[`RecordConfig::tf_rate_hz`] s of sim time; each camera look is also published, and each
+//! attempt renders two more frames (overview and basket after it) for the storyboard.
+//!
+//! | topic | schema | content |
+//! |---|---|---|
+//! | `/tf` | `foxglove.FrameTransforms` | `world` → `object/<name>`, `arm/link_1`…`arm/link_6`, `gripper/palm`, `gripper/finger_l` / `finger_r` at [`RecordConfig::tf_rate_hz`]; `world` → `camera/<name>` (optical frame: x right, y down, z forward) at each look |
+//! | `/scene` | `foxglove.SceneUpdate` | one entity per body, `frame_locked`, in its tf frame: object colliders (triangles in the meshes' colours), link capsules (cylinders and spheres), palm and finger boxes; the scenery (table, baskets, pedestal) as boxes in `world`; sent when a body appears, deletions when an object goes |
+//! | `/grasp` | `foxglove.SceneUpdate` | entity `grasp` in `world`: the two pads at the planned tool centre (yawed, open to the predicted opening), the opening line, the approach arrow, a label; metadata rank, quality, opening, yaw, outcome; yellow when planned, then green (placed), orange (grasped, not placed) or red (failed) |
+//! | `/camera/{overview,closeup,basket}/rgb` | `foxglove.RawImage` | `rgb8` |
+//! | `/camera/{overview,closeup,basket}/depth` | `foxglove.RawImage` | `32FC1`, optical z in metres, 0 where nothing was hit |
+//! | `/camera/{overview,closeup,basket}/calibration` | `foxglove.CameraCalibration` | pinhole (`plumb_bob`, no distortion) |
+//! | `/events` | `foxglove.Log` | round start and end, attempt start and end with the success flags and the failure reason |
+//!
+//! The file also holds an MCAP metadata record `lgdm.round` (round, scenario, grasp source,
+//! seed, objects).
+//!
+//! ```
+//! use lgdm_pointcloud::mesh::Mesh;
+//! use lgdm_pointcloud::math::translation;
+//! use lgdm_sim::record::{RecordConfig, Recorder};
+//! use lgdm_sim::world::{World, WorldConfig};
+//! let mut world = World::new(WorldConfig::default()).unwrap();
+//! let recorder = Recorder::start(&mut world, &RecordConfig::default(), 0, Default::default()).unwrap();
+//! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
+//! let top_z = world.config().table.top_z_m();
+//! world.spawn_object("cube", &cube, &translation([0.05, -0.52, top_z + 0.05])).unwrap();
+//! world.settle(); // every 8th step (30 Hz) lands on /tf
+//! let round = recorder.finish(&mut world, "settled").unwrap();
+//! assert!(round.mcap.starts_with(b"\x89MCAP0\r\n"));
+//! assert_eq!(round.file_stem(), "round-0000");
+//! ```
+//!
+//! A run records its rounds with [`crate::run::run_trials_recorded`]; `lgdm sim grasp
+//! --record` writes them to `RUN_DIR/rounds/round-NNNN.{mcap,png}`.
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use foxglove::messages::{
+    ArrowPrimitive, CameraCalibration, Color, CubePrimitive, CylinderPrimitive, FrameTransform,
+    FrameTransforms, KeyValuePair, LinePrimitive, Log, Point3, Pose as FgPose, Quaternion,
+    RawImage, SceneEntity, SceneEntityDeletion, SceneUpdate, SpherePrimitive, TextPrimitive,
+    TriangleListPrimitive, Vector3,
+};
+use lgdm_pointcloud::dataset::{foxglove_pose, foxglove_schema, foxglove_timestamp};
+use lgdm_pointcloud::grasp::GraspRectangle;
+use lgdm_pointcloud::grasp::cornell::draw_rectangles;
+use lgdm_pointcloud::image::RgbImage;
+use lgdm_pointcloud::math::{Pose, transform_point};
+use lgdm_pointcloud::mesh::Mesh;
+use lgdm_pointcloud::render::Camera;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3 as NVector3};
+use prost::Message as _;
+use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
+use serde::{Deserialize, Serialize};
+
+use crate::attempt::{Execution, GraspPlan};
+use crate::camera::{BASKET_RGB, OverviewCamera, SceneFrame, TABLE_RGB};
+use crate::gripper::GripperConfig;
+use crate::robot::Robot;
+use crate::world::{ObjectHandle, StepObserver, World, rapier_to_isometry};
+
+/// The `/tf` topic.
+pub const TOPIC_TF: &str = "/tf";
+/// The `/scene` topic.
+pub const TOPIC_SCENE: &str = "/scene";
+/// The `/grasp` topic.
+pub const TOPIC_GRASP: &str = "/grasp";
+/// The `/events` topic.
+pub const TOPIC_EVENTS: &str = "/events";
+/// The root frame of every transform.
+pub const WORLD_FRAME: &str = "world";
+
+/// What to record. Defaults are stated per field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordConfig {
+    /// Rate of `/tf` in sim time (Hz; default 30: rounded to every 8th step at 240 Hz).
+    pub tf_rate_hz: f64,
+    /// Record only the first this many rounds (default `None`: every round).
+    pub first_rounds: Option<usize>,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        Self {
+            tf_rate_hz: 30.0,
+            first_rounds: None,
+        }
+    }
+}
+
+impl RecordConfig {
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), RecordError> {
+        if !(self.tf_rate_hz.is_finite() && self.tf_rate_hz > 0.0) {
+            return Err(RecordError::InvalidConfig {
+                field: "tf_rate_hz",
+                reason: format!("{} must be positive and finite", self.tf_rate_hz),
+            });
+        }
+        Ok(())
+    }
+
+    /// Whether round `round` is recorded.
+    pub fn records_round(&self, round: usize) -> bool {
+        self.first_rounds.is_none_or(|n| round < n)
+    }
+}
+
+/// Errors of the recorder.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RecordError {
+    /// A bad [`RecordConfig`] field.
+    #[error("record config: {field}: {reason}")]
+    InvalidConfig {
+        /// The field.
+        field: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The MCAP writer failed.
+    #[error("writing the MCAP recording: {0}")]
+    Mcap(String),
+    /// A recording could not be written out.
+    #[error("writing {path}: {reason}")]
+    Write {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// One recorded round: the MCAP file's bytes and the storyboard.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoundRecording {
+    /// Round number.
+    pub round: usize,
+    /// The MCAP file.
+    pub mcap: Vec<u8>,
+    /// The storyboard: one row per attempt.
+    pub storyboard: RgbImage,
+}
+
+impl RoundRecording {
+    /// `round-0003`: the files are `<stem>.mcap` and `<stem>.png`.
+    pub fn file_stem(&self) -> String {
+        format!("round-{:04}", self.round)
+    }
+}
+
+/// Where recorded rounds go (a run directory, or memory).
+pub trait RoundSink {
+    /// Stores one round.
+    fn write_round(&mut self, round: RoundRecording) -> Result<(), RecordError>;
+}
+
+impl RoundSink for Vec<RoundRecording> {
+    fn write_round(&mut self, round: RoundRecording) -> Result<(), RecordError> {
+        self.push(round);
+        Ok(())
+    }
+}
+
+/// The cameras a recording shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RecordCamera {
+    /// The fixed overview camera.
+    Overview,
+    /// The per-object close-up camera (moves from look to look).
+    Closeup,
+    /// A camera above the target basket (the outcome of a placement).
+    Basket,
+}
+
+impl RecordCamera {
+    const ALL: [RecordCamera; 3] = [Self::Overview, Self::Closeup, Self::Basket];
+
+    /// `overview`, `closeup`, `basket`: topics `/camera/<name>/…`, frame `camera/<name>`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Overview => "overview",
+            Self::Closeup => "closeup",
+            Self::Basket => "basket",
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// A camera 0.8 m above basket `index`'s floor looking down (224 px, 40°: the whole basket), or
+/// `None` when the world has no such basket.
+pub fn basket_camera(world: &World, index: usize) -> Option<Camera> {
+    let b = world.config().baskets.get(index)?;
+    let [x, y, z] = b.floor_center_m;
+    Some(
+        OverviewCamera {
+            eye_m: [x, y, z + 0.8],
+            target_m: [x, y, z],
+            ..OverviewCamera::default()
+        }
+        .camera(),
+    )
+}
+
+/// Channel ids, added in this order.
+#[derive(Debug, Clone, Copy)]
+struct Channels {
+    tf: u16,
+    scene: u16,
+    grasp: u16,
+    events: u16,
+    /// Per camera: rgb, depth, calibration.
+    cameras: [[u16; 3]; 3],
+}
+
+/// A robot body and its frame.
+#[derive(Debug, Clone)]
+struct BodyFrame {
+    body: RigidBodyHandle,
+    frame: String,
+}
+
+/// A live object and its frame.
+#[derive(Debug, Clone)]
+struct ObjectFrame {
+    handle: ObjectHandle,
+    frame: String,
+}
+
+/// What the storyboard shows of one attempt.
+#[derive(Debug, Clone, Default)]
+struct StoryRow {
+    panels: Vec<(String, RgbImage)>,
+    caption: String,
+}
+
+struct Recording {
+    writer: Option<mcap::Writer<Cursor<Vec<u8>>>>,
+    channels: Channels,
+    sequences: BTreeMap<u16, u32>,
+    error: Option<String>,
+    tf_every_steps: u64,
+    round: usize,
+    bodies: Vec<BodyFrame>,
+    objects: Vec<ObjectFrame>,
+    scenery: Vec<ColliderHandle>,
+    /// The latest overview frame (the storyboard's "before").
+    overview: Option<SceneFrame>,
+    /// The attempt in progress: its panels so far.
+    pending: Option<StoryRow>,
+    rows: Vec<StoryRow>,
+}
+
+impl std::fmt::Debug for Recording {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recording")
+            .field("round", &self.round)
+            .field("bodies", &self.bodies.len())
+            .field("objects", &self.objects.len())
+            .field("rows", &self.rows.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Records one round (see the module docs). Cheap to clone: the clones share the recording;
+/// one of them sits in the world as its [`StepObserver`] until [`Recorder::finish`].
+#[derive(Debug, Clone)]
+pub struct Recorder {
+    shared: Arc<Mutex<Recording>>,
+}
+
+/// The world's step observer: samples the poses.
+#[derive(Debug)]
+struct TfSampler(Arc<Mutex<Recording>>);
+
+impl StepObserver for TfSampler {
+    fn after_step(&mut self, world: &World) {
+        let mut rec = lock(&self.0);
+        if world.steps().is_multiple_of(rec.tf_every_steps) {
+            rec.sample(world);
+        }
+    }
+}
+
+fn lock(shared: &Mutex<Recording>) -> MutexGuard<'_, Recording> {
+    // A panic while recording leaves nothing inconsistent that matters: keep going.
+    shared.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Sim time of the world now (ns).
+fn now_ns(world: &World) -> u64 {
+    (world.time_s() * 1e9).round() as u64
+}
+
+impl Recorder {
+    /// Starts recording round `round` of `world`: opens the MCAP (schemas, channels, a metadata
+    /// record `lgdm.round` with `metadata`), installs the pose sampler as the world's
+    /// [`StepObserver`] and publishes the scene as it is.
+    pub fn start(
+        world: &mut World,
+        config: &RecordConfig,
+        round: usize,
+        metadata: BTreeMap<String, String>,
+    ) -> Result<Self, RecordError> {
+        config.validate()?;
+        let mcap_err = |e: mcap::McapError| RecordError::Mcap(e.to_string());
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .library(concat!("lgdm-sim/", env!("CARGO_PKG_VERSION")))
+            .create(Cursor::new(Vec::new()))
+            .map_err(mcap_err)?;
+        let mut schema = |(name, encoding, data): (String, String, Vec<u8>)| {
+            writer.add_schema(&name, &encoding, &data)
+        };
+        let tf_schema = schema(foxglove_schema::<FrameTransforms>()).map_err(mcap_err)?;
+        let scene_schema = schema(foxglove_schema::<SceneUpdate>()).map_err(mcap_err)?;
+        let image_schema = schema(foxglove_schema::<RawImage>()).map_err(mcap_err)?;
+        let calib_schema = schema(foxglove_schema::<CameraCalibration>()).map_err(mcap_err)?;
+        let log_schema = schema(foxglove_schema::<Log>()).map_err(mcap_err)?;
+        let none = BTreeMap::new();
+        let mut channel = |schema: u16, topic: &str| {
+            writer
+                .add_channel(schema, topic, "protobuf", &none)
+                .map_err(mcap_err)
+        };
+        let tf = channel(tf_schema, TOPIC_TF)?;
+        let scene = channel(scene_schema, TOPIC_SCENE)?;
+        let grasp = channel(scene_schema, TOPIC_GRASP)?;
+        let events = channel(log_schema, TOPIC_EVENTS)?;
+        let mut cameras = [[0u16; 3]; 3];
+        for camera in RecordCamera::ALL {
+            let name = camera.name();
+            cameras[camera.index()] = [
+                channel(image_schema, &format!("/camera/{name}/rgb"))?,
+                channel(image_schema, &format!("/camera/{name}/depth"))?,
+                channel(calib_schema, &format!("/camera/{name}/calibration"))?,
+            ];
+        }
+        let mut metadata = metadata;
+        metadata.insert("round".into(), round.to_string());
+        writer
+            .write_metadata(&mcap::records::Metadata {
+                name: "lgdm.round".into(),
+                metadata,
+            })
+            .map_err(mcap_err)?;
+        let steps = (1.0 / (config.tf_rate_hz * f64::from(world.dt_s()))).round();
+        let shared = Arc::new(Mutex::new(Recording {
+            writer: Some(writer),
+            channels: Channels {
+                tf,
+                scene,
+                grasp,
+                events,
+                cameras,
+            },
+            sequences: BTreeMap::new(),
+            error: None,
+            tf_every_steps: (steps as u64).max(1),
+            round,
+            bodies: Vec::new(),
+            objects: Vec::new(),
+            scenery: Vec::new(),
+            overview: None,
+            pending: None,
+            rows: Vec::new(),
+        }));
+        let recorder = Self { shared };
+        recorder.log(world, LogLevel::Info, &format!("round {round} start"));
+        lock(&recorder.shared).sample(world);
+        world.set_step_observer(Some(Box::new(TfSampler(recorder.shared.clone()))));
+        Ok(recorder)
+    }
+
+    /// Adds the robot's bodies (links, palm, fingers) to the scene and to `/tf`.
+    pub fn add_robot(&self, world: &World, robot: &Robot) {
+        let mut rec = lock(&self.shared);
+        let (palm, fingers) = robot.gripper().bodies();
+        let mut parts: Vec<(RigidBodyHandle, String, [f64; 4])> = robot
+            .link_bodies()
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (*b, format!("arm/link_{}", i + 1), ARM_RGBA))
+            .collect();
+        parts.push((palm, "gripper/palm".into(), PALM_RGBA));
+        parts.push((fingers[0], "gripper/finger_l".into(), FINGER_RGBA));
+        parts.push((fingers[1], "gripper/finger_r".into(), FINGER_RGBA));
+        let t = now_ns(world);
+        let mut entities = Vec::new();
+        for (body, frame, color) in parts {
+            entities.push(body_entity(world, body, &frame, color, t));
+            rec.bodies.push(BodyFrame { body, frame });
+        }
+        let update = SceneUpdate {
+            deletions: Vec::new(),
+            entities,
+        };
+        let ch = rec.channels.scene;
+        rec.write(ch, t, &update.encode_to_vec());
+        rec.sample(world);
+    }
+
+    /// Publishes a camera frame (rgb, depth, calibration, and the camera's pose on `/tf`). The
+    /// latest overview frame is kept as the storyboard's "before" panel.
+    pub fn camera_shot(&self, world: &World, camera: RecordCamera, shot: &SceneFrame) {
+        let mut rec = lock(&self.shared);
+        rec.publish_shot(world, camera, shot);
+        if camera == RecordCamera::Overview {
+            rec.overview = Some(shot.clone());
+        }
+    }
+
+    /// An attempt begins: publishes the planned grasp on `/grasp` and a start event, and keeps
+    /// the storyboard's first panels (the crop with the grasp rectangle, the overview with the
+    /// grasp projected).
+    pub(crate) fn grasp_planned(&self, world: &World, shown: &GraspShown<'_>) {
+        let mut rec = lock(&self.shared);
+        let t = now_ns(world);
+        let entity = grasp_entity(shown, None, t);
+        let ch = rec.channels.grasp;
+        rec.write(
+            ch,
+            t,
+            &SceneUpdate {
+                deletions: Vec::new(),
+                entities: vec![entity],
+            }
+            .encode_to_vec(),
+        );
+        let g = &shown.plan.grasp;
+        rec.log_at(
+            t,
+            LogLevel::Info,
+            &format!(
+                "attempt start: {} grasp rank {} quality {:.3} opening {:.1} mm yaw {:.1} deg at ({:.3}, {:.3}, {:.3}) m",
+                shown.object.unwrap_or("unknown object"),
+                shown.rank,
+                g.quality,
+                1000.0 * g.opening_m,
+                g.yaw_rad.to_degrees(),
+                shown.plan.tcp_m[0],
+                shown.plan.tcp_m[1],
+                shown.plan.tcp_m[2],
+            ),
+        );
+        let mut row = StoryRow::default();
+        if let Some((crop, rect)) = &shown.crop {
+            let mut img = RgbImage::from_pixels(
+                crop.size_px as usize,
+                crop.size_px as usize,
+                crop.rgb.clone(),
+            );
+            draw_rectangles(&mut img, &[*rect], &[]);
+            row.panels.push(("crop + grasp".into(), img));
+        }
+        if let Some(overview) = &rec.overview {
+            let mut img = frame_image(overview);
+            if let Some(rect) = project_grasp(&overview.camera, shown) {
+                draw_rectangles(&mut img, &[rect], &[]);
+            }
+            row.panels.push(("before".into(), img));
+        }
+        rec.pending = Some(row);
+    }
+
+    /// An attempt ended: publishes the frames taken after it (overview, basket), the grasp
+    /// coloured by its outcome and an end event; the frames join the storyboard row.
+    pub(crate) fn grasp_done(
+        &self,
+        world: &World,
+        shown: &GraspShown<'_>,
+        exec: &Execution,
+        after: &[(RecordCamera, SceneFrame)],
+    ) {
+        let mut rec = lock(&self.shared);
+        let t = now_ns(world);
+        for (camera, shot) in after {
+            rec.publish_shot(world, *camera, shot);
+        }
+        let entity = grasp_entity(shown, Some(exec), t);
+        let ch = rec.channels.grasp;
+        rec.write(
+            ch,
+            t,
+            &SceneUpdate {
+                deletions: Vec::new(),
+                entities: vec![entity],
+            }
+            .encode_to_vec(),
+        );
+        let level = if exec.placement_success {
+            LogLevel::Info
+        } else {
+            LogLevel::Warning
+        };
+        rec.log_at(t, level, &format!("attempt end: {}", outcome_text(exec)));
+        let row = rec.pending.get_or_insert_with(StoryRow::default);
+        for (camera, shot) in after {
+            row.panels
+                .push((format!("{} after", camera.name()), frame_image(shot)));
+        }
+    }
+
+    /// The attempt's record is complete: closes its storyboard row with `caption` (a row with
+    /// only the overview when no grasp was tried).
+    pub(crate) fn attempt_recorded(&self, caption: String) {
+        let mut rec = lock(&self.shared);
+        let mut row = rec.pending.take().unwrap_or_else(|| StoryRow {
+            panels: rec
+                .overview
+                .as_ref()
+                .map(|o| ("overview".to_string(), frame_image(o)))
+                .into_iter()
+                .collect(),
+            caption: String::new(),
+        });
+        row.caption = caption;
+        rec.rows.push(row);
+    }
+
+    /// Publishes an event on `/events`.
+    pub fn log(&self, world: &World, level: LogLevel, text: &str) {
+        lock(&self.shared).log_at(now_ns(world), level, text);
+    }
+
+    /// Ends the round: samples the poses a last time, logs `summary` as the round's end event,
+    /// removes the sampler from the world and closes the MCAP; composes the storyboard.
+    pub fn finish(self, world: &mut World, summary: &str) -> Result<RoundRecording, RecordError> {
+        world.set_step_observer(None);
+        let mut rec = lock(&self.shared);
+        rec.sample(world);
+        let round = rec.round;
+        rec.log_at(
+            now_ns(world),
+            LogLevel::Info,
+            &format!("round {round} end: {summary}"),
+        );
+        if let Some(e) = rec.error.take() {
+            return Err(RecordError::Mcap(e));
+        }
+        let mut writer = rec
+            .writer
+            .take()
+            .ok_or_else(|| RecordError::Mcap("the recording was already finished".into()))?;
+        writer
+            .finish()
+            .map_err(|e| RecordError::Mcap(e.to_string()))?;
+        let mcap = writer.into_inner().into_inner();
+        let storyboard = compose_storyboard(&format!("round {round}: {summary}"), &rec.rows);
+        Ok(RoundRecording {
+            round,
+            mcap,
+            storyboard,
+        })
+    }
+}
+
+/// Severity of an event (foxglove.Log levels).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogLevel {
+    /// Normal progress.
+    Info = 2,
+    /// A failed attempt.
+    Warning = 3,
+}
+
+/// What the recorder shows of a grasp.
+#[derive(Debug, Clone)]
+pub(crate) struct GraspShown<'a> {
+    pub plan: &'a GraspPlan,
+    pub rank: usize,
+    pub object: Option<&'a str>,
+    pub gripper: &'a GripperConfig,
+    /// The crop and the grasp rectangle in crop pixels.
+    pub crop: Option<(&'a lgdm_pointcloud::crop::ObjectCrop, GraspRectangle)>,
+}
+
+impl Recording {
+    fn write(&mut self, channel: u16, t_ns: u64, data: &[u8]) {
+        if self.error.is_some() {
+            return;
+        }
+        let Some(writer) = self.writer.as_mut() else {
+            return;
+        };
+        let seq = self.sequences.entry(channel).or_insert(0);
+        *seq += 1;
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: *seq,
+            log_time: t_ns,
+            publish_time: t_ns,
+        };
+        if let Err(e) = writer.write_to_known_channel(&header, data) {
+            self.error = Some(e.to_string());
+        }
+    }
+
+    fn log_at(&mut self, t_ns: u64, level: LogLevel, text: &str) {
+        let msg = Log {
+            timestamp: Some(foxglove_timestamp(t_ns)),
+            level: level as i32,
+            message: text.to_string(),
+            name: "lgdm.sim".into(),
+            file: String::new(),
+            line: 0,
+        };
+        let ch = self.channels.events;
+        self.write(ch, t_ns, &msg.encode_to_vec());
+    }
+
+    /// Publishes scene changes (objects spawned or removed, scenery changed) and every body's
+    /// pose now.
+    fn sample(&mut self, world: &World) {
+        let t = now_ns(world);
+        self.sync_scene(world, t);
+        let mut transforms = Vec::with_capacity(self.objects.len() + self.bodies.len());
+        for o in &self.objects {
+            if let Ok(pose) = world.object_pose(o.handle) {
+                transforms.push(frame_transform(&o.frame, &foxglove_pose(&pose), t));
+            }
+        }
+        for b in &self.bodies {
+            if let Some(body) = world.physics.bodies.get(b.body) {
+                let pose = isometry_pose(&rapier_to_isometry(body.position()));
+                transforms.push(frame_transform(&b.frame, &pose, t));
+            }
+        }
+        let ch = self.channels.tf;
+        self.write(ch, t, &FrameTransforms { transforms }.encode_to_vec());
+    }
+
+    fn sync_scene(&mut self, world: &World, t: u64) {
+        let mut update = SceneUpdate::default();
+        let scenery: Vec<ColliderHandle> = world
+            .physics
+            .colliders
+            .iter()
+            .filter(|(h, _)| world.is_scenery(*h))
+            .map(|(h, _)| h)
+            .collect();
+        if scenery != self.scenery {
+            update.entities.push(scenery_entity(world, &scenery, t));
+            self.scenery = scenery;
+        }
+        let live: Vec<ObjectHandle> = world.objects().collect();
+        let (kept, gone): (Vec<ObjectFrame>, Vec<ObjectFrame>) = std::mem::take(&mut self.objects)
+            .into_iter()
+            .partition(|o| live.contains(&o.handle));
+        for o in gone {
+            update.deletions.push(SceneEntityDeletion {
+                timestamp: Some(foxglove_timestamp(t)),
+                r#type: 0,
+                id: o.frame,
+            });
+        }
+        self.objects = kept;
+        for h in live {
+            if self.objects.iter().any(|o| o.handle == h) {
+                continue;
+            }
+            // The collider, as the physics has it (and the cameras draw it by default).
+            let (Ok(name), Ok(mesh)) = (world.object_name(h), world.object_collider_mesh(h)) else {
+                continue;
+            };
+            let mut frame = format!("object/{name}");
+            if self.objects.iter().any(|o| o.frame == frame) {
+                frame = format!("object/{name}@{}", h.0);
+            }
+            update
+                .entities
+                .push(object_entity(&frame, name, h, mesh, t));
+            self.objects.push(ObjectFrame { handle: h, frame });
+        }
+        if !(update.entities.is_empty() && update.deletions.is_empty()) {
+            let ch = self.channels.scene;
+            self.write(ch, t, &update.encode_to_vec());
+        }
+    }
+
+    fn publish_shot(&mut self, world: &World, camera: RecordCamera, shot: &SceneFrame) {
+        let t = now_ns(world);
+        let frame_id = format!("camera/{}", camera.name());
+        let tf = FrameTransforms {
+            transforms: vec![frame_transform(
+                &frame_id,
+                &foxglove_pose(&shot.camera.world_from_camera),
+                t,
+            )],
+        };
+        let ch = self.channels.tf;
+        self.write(ch, t, &tf.encode_to_vec());
+        let f = &shot.frame;
+        let [rgb_ch, depth_ch, calib_ch] = self.channels.cameras[camera.index()];
+        let rgb = RawImage {
+            timestamp: Some(foxglove_timestamp(t)),
+            frame_id: frame_id.clone(),
+            width: f.width,
+            height: f.height,
+            encoding: "rgb8".into(),
+            step: 3 * f.width,
+            data: f.rgb.iter().flatten().copied().collect::<Vec<u8>>().into(),
+        };
+        self.write(rgb_ch, t, &rgb.encode_to_vec());
+        let depth = RawImage {
+            timestamp: Some(foxglove_timestamp(t)),
+            frame_id: frame_id.clone(),
+            width: f.width,
+            height: f.height,
+            encoding: "32FC1".into(),
+            step: 4 * f.width,
+            data: f
+                .depth_m
+                .iter()
+                .flat_map(|d| d.to_le_bytes())
+                .collect::<Vec<u8>>()
+                .into(),
+        };
+        self.write(depth_ch, t, &depth.encode_to_vec());
+        let k = shot.camera.intrinsics;
+        let (fx, fy, cx, cy) = (
+            f64::from(k.fx),
+            f64::from(k.fy),
+            f64::from(k.cx),
+            f64::from(k.cy),
+        );
+        let calib = CameraCalibration {
+            timestamp: Some(foxglove_timestamp(t)),
+            frame_id,
+            width: k.width,
+            height: k.height,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: vec![fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: vec![fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        };
+        self.write(calib_ch, t, &calib.encode_to_vec());
+    }
+}
+
+const ARM_RGBA: [f64; 4] = [0.55, 0.62, 0.72, 1.0];
+const PALM_RGBA: [f64; 4] = [0.22, 0.22, 0.25, 1.0];
+const FINGER_RGBA: [f64; 4] = [0.78, 0.78, 0.82, 1.0];
+
+fn color(c: [f64; 4]) -> Color {
+    Color {
+        r: c[0],
+        g: c[1],
+        b: c[2],
+        a: c[3],
+    }
+}
+
+fn rgb8(c: [u8; 3]) -> Color {
+    color([
+        f64::from(c[0]) / 255.0,
+        f64::from(c[1]) / 255.0,
+        f64::from(c[2]) / 255.0,
+        1.0,
+    ])
+}
+
+fn vector3(v: [f64; 3]) -> Vector3 {
+    Vector3 {
+        x: v[0],
+        y: v[1],
+        z: v[2],
+    }
+}
+
+/// An f64 isometry as a foxglove pose.
+fn isometry_pose(iso: &Isometry3<f64>) -> FgPose {
+    let t = iso.translation.vector;
+    let q = iso.rotation;
+    FgPose {
+        position: Some(vector3([t.x, t.y, t.z])),
+        orientation: Some(Quaternion {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        }),
+    }
+}
+
+fn frame_transform(child: &str, pose: &FgPose, t_ns: u64) -> FrameTransform {
+    FrameTransform {
+        timestamp: Some(foxglove_timestamp(t_ns)),
+        parent_frame_id: WORLD_FRAME.into(),
+        child_frame_id: child.into(),
+        translation: pose.position,
+        rotation: pose.orientation,
+    }
+}
+
+fn metadata(pairs: &[(&str, String)]) -> Vec<KeyValuePair> {
+    pairs
+        .iter()
+        .map(|(k, v)| KeyValuePair {
+            key: (*k).to_string(),
+            value: v.clone(),
+        })
+        .collect()
+}
+
+fn entity(frame_id: &str, id: &str, t_ns: u64) -> SceneEntity {
+    SceneEntity {
+        timestamp: Some(foxglove_timestamp(t_ns)),
+        frame_id: frame_id.into(),
+        id: id.into(),
+        frame_locked: true,
+        ..SceneEntity::default()
+    }
+}
+
+/// A body's colliders as primitives in its frame: boxes as cubes, balls as spheres, capsules as
+/// a cylinder and two spheres.
+fn body_entity(
+    world: &World,
+    body: RigidBodyHandle,
+    frame: &str,
+    rgba: [f64; 4],
+    t_ns: u64,
+) -> SceneEntity {
+    let mut e = entity(frame, frame, t_ns);
+    let Some(rb) = world.physics.bodies.get(body) else {
+        return e;
+    };
+    for &c in rb.colliders() {
+        let Some(collider) = world.physics.colliders.get(c) else {
+            continue;
+        };
+        let local = collider
+            .position_wrt_parent()
+            .map(rapier_to_isometry)
+            .unwrap_or_else(Isometry3::identity);
+        let shape = collider.shape();
+        if let Some(cuboid) = shape.as_cuboid() {
+            let h = cuboid.half_extents;
+            e.cubes.push(CubePrimitive {
+                pose: Some(isometry_pose(&local)),
+                size: Some(vector3([
+                    2.0 * f64::from(h.x),
+                    2.0 * f64::from(h.y),
+                    2.0 * f64::from(h.z),
+                ])),
+                color: Some(color(rgba)),
+            });
+        } else if let Some(ball) = shape.as_ball() {
+            let d = 2.0 * f64::from(ball.radius);
+            e.spheres.push(SpherePrimitive {
+                pose: Some(isometry_pose(&local)),
+                size: Some(vector3([d; 3])),
+                color: Some(color(rgba)),
+            });
+        } else if let Some(capsule) = shape.as_capsule() {
+            let a = NVector3::new(
+                f64::from(capsule.segment.a.x),
+                f64::from(capsule.segment.a.y),
+                f64::from(capsule.segment.a.z),
+            );
+            let b = NVector3::new(
+                f64::from(capsule.segment.b.x),
+                f64::from(capsule.segment.b.y),
+                f64::from(capsule.segment.b.z),
+            );
+            let d = 2.0 * f64::from(capsule.radius);
+            let axis = b - a;
+            let rotation =
+                UnitQuaternion::rotation_between(&NVector3::z(), &axis).unwrap_or_else(|| {
+                    UnitQuaternion::from_axis_angle(&NVector3::x_axis(), std::f64::consts::PI)
+                });
+            let mid = Isometry3::from_parts(Translation3::from(0.5 * (a + b)), rotation);
+            e.cylinders.push(CylinderPrimitive {
+                pose: Some(isometry_pose(&(local * mid))),
+                size: Some(vector3([d, d, axis.norm()])),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: Some(color(rgba)),
+            });
+            for end in [a, b] {
+                e.spheres.push(SpherePrimitive {
+                    pose: Some(isometry_pose(
+                        &(local * Isometry3::from_parts(end.into(), UnitQuaternion::identity())),
+                    )),
+                    size: Some(vector3([d; 3])),
+                    color: Some(color(rgba)),
+                });
+            }
+        }
+    }
+    e
+}
+
+/// The fixed boxes of the scenery (table, baskets, pedestal; not the floor: Foxglove draws a
+/// grid) in the world frame.
+fn scenery_entity(world: &World, scenery: &[ColliderHandle], t_ns: u64) -> SceneEntity {
+    let mut e = entity(WORLD_FRAME, "scenery", t_ns);
+    let table = world.config().table.center_m;
+    for &h in scenery {
+        let Some(collider) = world.physics.colliders.get(h) else {
+            continue;
+        };
+        let Some(cuboid) = collider.shape().as_cuboid() else {
+            continue;
+        };
+        let half = cuboid.half_extents;
+        if half.x > 2.0 || half.y > 2.0 {
+            continue; // the floor
+        }
+        let pose = rapier_to_isometry(collider.position());
+        let at = pose.translation.vector;
+        let is_table = (0..3).all(|k| (at[k] - f64::from(table[k])).abs() < 1e-4);
+        e.cubes.push(CubePrimitive {
+            pose: Some(isometry_pose(&pose)),
+            size: Some(vector3([
+                2.0 * f64::from(half.x),
+                2.0 * f64::from(half.y),
+                2.0 * f64::from(half.z),
+            ])),
+            color: Some(rgb8(if is_table { TABLE_RGB } else { BASKET_RGB })),
+        });
+    }
+    e
+}
+
+/// An object's mesh as a triangle list (per-vertex colours from the per-triangle colours) in
+/// its frame.
+fn object_entity(
+    frame: &str,
+    name: &str,
+    handle: ObjectHandle,
+    mesh: &Mesh,
+    t_ns: u64,
+) -> SceneEntity {
+    let mut e = entity(frame, frame, t_ns);
+    e.metadata = metadata(&[("name", name.to_string()), ("handle", handle.0.to_string())]);
+    let mut tri = TriangleListPrimitive {
+        pose: Some(isometry_pose(&Isometry3::identity())),
+        ..TriangleListPrimitive::default()
+    };
+    tri.points.reserve(3 * mesh.triangles.len());
+    tri.colors.reserve(3 * mesh.triangles.len());
+    for (t, c) in mesh.triangles.iter().zip(&mesh.colors) {
+        for &i in t {
+            let Some(v) = mesh.vertices.get(i as usize) else {
+                continue;
+            };
+            tri.points.push(Point3 {
+                x: f64::from(v[0]),
+                y: f64::from(v[1]),
+                z: f64::from(v[2]),
+            });
+            tri.colors.push(rgb8(*c));
+        }
+    }
+    e.triangles.push(tri);
+    e
+}
+
+/// The planned grasp in the world: the two pads at the tool centre, the opening line between
+/// them, the approach arrow from the pre-grasp, a label; coloured by `outcome` when known.
+fn grasp_entity(shown: &GraspShown<'_>, outcome: Option<&Execution>, t_ns: u64) -> SceneEntity {
+    let plan = shown.plan;
+    let g = shown.gripper;
+    let mut e = entity(WORLD_FRAME, "grasp", t_ns);
+    e.frame_locked = false;
+    let rgba = match outcome {
+        None => [1.0, 0.85, 0.1, 0.9],
+        Some(x) if x.placement_success => [0.15, 0.85, 0.25, 0.9],
+        Some(x) if x.grasp_success => [1.0, 0.55, 0.1, 0.9],
+        Some(_) => [0.9, 0.15, 0.15, 0.9],
+    };
+    let yaw = plan.grasp.yaw_rad;
+    let rotation = UnitQuaternion::from_axis_angle(&NVector3::z_axis(), yaw);
+    let tcp = NVector3::from(plan.tcp_m);
+    let half_open = 0.5 * plan.grasp.opening_m;
+    let thick = f64::from(g.finger_thickness_m);
+    let axis = rotation * NVector3::x();
+    let mut pads = Vec::new();
+    for side in [-1.0, 1.0] {
+        let centre = tcp + axis * side * (half_open + 0.5 * thick);
+        pads.push(centre);
+        e.cubes.push(CubePrimitive {
+            pose: Some(isometry_pose(&Isometry3::from_parts(
+                centre.into(),
+                rotation,
+            ))),
+            size: Some(vector3([
+                thick,
+                f64::from(g.finger_width_m),
+                f64::from(g.finger_length_m),
+            ])),
+            color: Some(color(rgba)),
+        });
+    }
+    let point = |v: NVector3<f64>| Point3 {
+        x: v.x,
+        y: v.y,
+        z: v.z,
+    };
+    e.lines.push(LinePrimitive {
+        r#type: 0,
+        pose: Some(isometry_pose(&Isometry3::identity())),
+        thickness: 0.003,
+        scale_invariant: false,
+        points: vec![point(pads[0]), point(pads[1])],
+        color: Some(color(rgba)),
+        colors: Vec::new(),
+        indices: Vec::new(),
+    });
+    let drop = (plan.pregrasp_z_m - plan.tcp_m[2]).max(0.0);
+    let head = drop.min(0.03);
+    // The arrow points along its pose's +x: turned to −z, it starts at the pre-grasp.
+    let down = UnitQuaternion::from_axis_angle(&NVector3::y_axis(), std::f64::consts::FRAC_PI_2);
+    e.arrows.push(ArrowPrimitive {
+        pose: Some(isometry_pose(&Isometry3::from_parts(
+            Translation3::new(tcp.x, tcp.y, plan.pregrasp_z_m),
+            down,
+        ))),
+        shaft_length: (drop - head).max(0.0),
+        shaft_diameter: 0.004,
+        head_length: head,
+        head_diameter: 0.012,
+        color: Some(color(rgba)),
+    });
+    let mut label = format!(
+        "rank {} q {:.2} {:.0} mm",
+        shown.rank,
+        plan.grasp.quality,
+        1000.0 * plan.grasp.opening_m
+    );
+    if let Some(x) = outcome {
+        label.push_str(": ");
+        label.push_str(&outcome_text(x));
+    }
+    e.texts.push(TextPrimitive {
+        pose: Some(isometry_pose(&Isometry3::translation(
+            tcp.x,
+            tcp.y,
+            plan.pregrasp_z_m + 0.03,
+        ))),
+        billboard: true,
+        font_size: 14.0,
+        scale_invariant: true,
+        color: Some(color([1.0, 1.0, 1.0, 1.0])),
+        text: label,
+    });
+    let mut meta = vec![
+        ("object", shown.object.unwrap_or("").to_string()),
+        ("rank", shown.rank.to_string()),
+        ("quality", format!("{}", plan.grasp.quality)),
+        ("opening_m", format!("{}", plan.grasp.opening_m)),
+        ("commanded_opening_m", format!("{}", plan.opening_m)),
+        ("yaw_rad", format!("{}", plan.grasp.yaw_rad)),
+        (
+            "tcp_m",
+            format!("{} {} {}", plan.tcp_m[0], plan.tcp_m[1], plan.tcp_m[2]),
+        ),
+    ];
+    meta.push((
+        "outcome",
+        outcome.map_or_else(|| "planned".to_string(), outcome_text),
+    ));
+    e.metadata = metadata(&meta);
+    e
+}
+
+/// `grasp ok, placed` / `grasp ok, not placed (dropped_outside)` / `failed (missed)`.
+pub fn outcome_text(exec: &Execution) -> String {
+    let reason = exec.reason.map(|r| r.as_str()).unwrap_or("unknown");
+    match (exec.grasp_success, exec.placement_success) {
+        (true, true) => "grasp ok, placed".into(),
+        (true, false) => format!("grasp ok, not placed ({reason})"),
+        _ => format!("grasp failed ({reason})"),
+    }
+}
+
+fn frame_image(shot: &SceneFrame) -> RgbImage {
+    let f = &shot.frame;
+    RgbImage::from_pixels(f.width as usize, f.height as usize, f.rgb.clone())
+}
+
+/// The planned grasp's jaw rectangle (predicted opening × finger width, at the grasp point)
+/// projected into `camera`'s image, Cornell corner order.
+fn project_grasp(camera: &Camera, shown: &GraspShown<'_>) -> Option<GraspRectangle> {
+    let g = &shown.plan.grasp;
+    let (s, c) = g.yaw_rad.sin_cos();
+    let (o, w) = (
+        0.5 * g.opening_m,
+        0.5 * f64::from(shown.gripper.finger_width_m),
+    );
+    let camera_from_world: Pose = camera.world_from_camera.inverse();
+    let corner = |a: f64, b: f64| {
+        let p = [
+            g.position_m[0] + a * o * c - b * w * s,
+            g.position_m[1] + a * o * s + b * w * c,
+            g.position_m[2],
+        ];
+        camera
+            .intrinsics
+            .project(transform_point(&camera_from_world, p.map(|v| v as f32)))
+    };
+    Some(GraspRectangle {
+        corners_px: [
+            corner(-1.0, -1.0)?,
+            corner(1.0, -1.0)?,
+            corner(1.0, 1.0)?,
+            corner(-1.0, 1.0)?,
+        ],
+    })
+}
+
+const STORY_BG: [u8; 3] = [32, 34, 38];
+const STORY_TEXT: [u8; 3] = [230, 230, 230];
+const STORY_LABEL: [u8; 3] = [160, 170, 180];
+const GAP: usize = 6;
+
+/// The storyboard: a title line, then per attempt a caption line, panel labels and the panels
+/// left to right.
+fn compose_storyboard(title: &str, rows: &[StoryRow]) -> RgbImage {
+    const LINE: usize = 12;
+    let row_width = |r: &StoryRow| {
+        let panels = GAP + r.panels.iter().map(|(_, p)| p.width + GAP).sum::<usize>();
+        panels.max(RgbImage::text_width(&r.caption, 1) + 2 * GAP)
+    };
+    let width = rows
+        .iter()
+        .map(row_width)
+        .chain([RgbImage::text_width(title, 1) + 2 * GAP, 240])
+        .max()
+        .unwrap_or(240);
+    let row_height =
+        |r: &StoryRow| 2 * LINE + r.panels.iter().map(|(_, p)| p.height).max().unwrap_or(0) + GAP;
+    let height = LINE + GAP + rows.iter().map(row_height).sum::<usize>();
+    let mut img = RgbImage::new(width, height, STORY_BG);
+    img.draw_text(GAP as i64, 4, title, STORY_TEXT, 1);
+    let mut y = LINE + GAP;
+    for r in rows {
+        img.draw_text(GAP as i64, y as i64, &r.caption, STORY_TEXT, 1);
+        let mut x = GAP;
+        for (label, panel) in &r.panels {
+            img.draw_text(x as i64, (y + LINE) as i64, label, STORY_LABEL, 1);
+            img.blit(panel, x as i64, (y + 2 * LINE) as i64);
+            x += panel.width + GAP;
+        }
+        y += row_height(r);
+    }
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_validation_and_round_selection() {
+        let c = RecordConfig::default();
+        c.validate().unwrap();
+        assert!(c.records_round(499));
+        let c = RecordConfig {
+            first_rounds: Some(2),
+            ..RecordConfig::default()
+        };
+        assert!(c.records_round(1) && !c.records_round(2));
+        let c = RecordConfig {
+            tf_rate_hz: 0.0,
+            ..RecordConfig::default()
+        };
+        assert!(matches!(
+            c.validate(),
+            Err(RecordError::InvalidConfig {
+                field: "tf_rate_hz",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn storyboard_has_a_row_per_attempt() {
+        let rows = vec![
+            StoryRow {
+                panels: vec![
+                    ("a".into(), RgbImage::new(20, 30, [255, 0, 0])),
+                    ("b".into(), RgbImage::new(10, 10, [0, 255, 0])),
+                ],
+                caption: "attempt 0".into(),
+            },
+            StoryRow {
+                panels: Vec::new(),
+                caption: "attempt 1: no grasp found".into(),
+            },
+        ];
+        let img = compose_storyboard("round 0", &rows);
+        assert!(img.width >= 240);
+        // Title, then row 0 (caption, labels, 30 px panels), then row 1 (no panels).
+        assert_eq!(img.height, 12 + GAP + (24 + 30 + GAP) + (24 + GAP));
+        assert_eq!(img.get(GAP, 12 + GAP + 24), [255, 0, 0]);
+    }
+}
