@@ -770,12 +770,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let round_start = Instant::now();
         let cfg = &self.spec.config;
         let scenario = self.spec.scenario;
-        let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(
-            self.spec.seed,
-            TAG_ROUND,
-            round as u64,
-            scenario as u64,
-        ));
+        let mut rng = round_rng(self.spec, round);
         let picks = round_objects(scenario, self.library, round, &cfg.scenario, &mut rng);
         let setup_start = Instant::now();
         let mut world = World::new(cfg.world.clone())?;
@@ -1080,6 +1075,21 @@ fn play<'a>(
         record,
         recorder: None,
     };
+    // Decompose every object the rounds will show ahead, in parallel (the picks are the
+    // rounds' first draws; the same seeds draw them again in each round).
+    let used: Vec<usize> = (0..spec.rounds)
+        .flat_map(|round| {
+            let mut rng = round_rng(spec, round);
+            round_objects(
+                spec.scenario,
+                library,
+                round,
+                &spec.config.scenario,
+                &mut rng,
+            )
+        })
+        .collect();
+    runner.shapes.prepare(library, &used);
     let mut rounds = Vec::with_capacity(spec.rounds);
     let mut setup_s = 0.0;
     let mut sim_s = 0.0;
@@ -1121,6 +1131,16 @@ fn play<'a>(
             real_time_factor: if total_s > 0.0 { sim_s / total_s } else { 0.0 },
         },
     })
+}
+
+/// The random stream of round `round`: it draws the round's objects, then their poses.
+fn round_rng(spec: &RunSpec, round: usize) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(derive_seed(
+        spec.seed,
+        TAG_ROUND,
+        round as u64,
+        spec.scenario as u64,
+    ))
 }
 
 /// A storyboard caption of an attempt: `attempt 2 (try 1, rank 1) mug_01: grasp failed (missed)`.

@@ -159,11 +159,13 @@ pub fn drop_object<R: rand::Rng + ?Sized>(
     Ok(handle)
 }
 
-/// The library's collider shapes, decomposed on first use.
+/// The library's collider shapes, decomposed on first use (or ahead, in parallel, by
+/// [`LibraryShapes::prepare`]), and their drawings.
 #[derive(Debug, Clone)]
 pub struct LibraryShapes {
     config: ShapeConfig,
     parts: Vec<Option<Vec<Vec<[f32; 3]>>>>,
+    drawings: Vec<Option<Mesh>>,
 }
 
 impl LibraryShapes {
@@ -172,6 +174,34 @@ impl LibraryShapes {
         Self {
             config,
             parts: vec![None; n],
+            drawings: vec![None; n],
+        }
+    }
+
+    /// Decomposes the library objects `indices` not decomposed yet, in parallel (VHACD takes
+    /// 0.1–0.5 s an object). The parts are those [`LibraryShapes::spawn`] would compute.
+    pub fn prepare(&mut self, library: &[ObjectModel], indices: &[usize]) {
+        use rayon::prelude::*;
+        if self.config.shape != ObjectShape::Decomposition {
+            return;
+        }
+        if self.parts.len() < library.len() {
+            self.parts.resize(library.len(), None);
+        }
+        let mut todo: Vec<usize> = indices
+            .iter()
+            .copied()
+            .filter(|&i| i < library.len() && self.parts[i].is_none())
+            .collect();
+        todo.sort_unstable();
+        todo.dedup();
+        let config = &self.config;
+        let done: Vec<(usize, Vec<Vec<[f32; 3]>>)> = todo
+            .par_iter()
+            .map(|&i| (i, decompose(&library[i].mesh, config)))
+            .collect();
+        for (i, parts) in done {
+            self.parts[i] = Some(parts);
         }
     }
 
@@ -200,8 +230,8 @@ impl LibraryShapes {
         object: &ObjectModel,
         pose: &Pose,
     ) -> Result<ObjectHandle, WorldError> {
-        match self.config.shape {
-            ObjectShape::Hull => world.spawn_object(name, &object.mesh, pose),
+        let handle = match self.config.shape {
+            ObjectShape::Hull => world.spawn_object(name, &object.mesh, pose)?,
             ObjectShape::Decomposition => {
                 if self.parts.len() <= index {
                     self.parts.resize(index + 1, None);
@@ -209,8 +239,17 @@ impl LibraryShapes {
                 let parts =
                     self.parts[index].get_or_insert_with(|| decompose(&object.mesh, &self.config));
                 let material = world.config().object.clone();
-                world.spawn_object_parts(name, &object.mesh, parts, pose, &material)
+                world.spawn_object_parts(name, &object.mesh, parts, pose, &material)?
             }
+        };
+        // The collider's drawing depends on the library object only: build it once per run.
+        if self.drawings.len() <= index {
+            self.drawings.resize(index + 1, None);
         }
+        match &self.drawings[index] {
+            Some(drawing) => world.set_object_collider_mesh(handle, drawing.clone())?,
+            None => self.drawings[index] = Some(world.object_collider_mesh(handle)?.clone()),
+        }
+        Ok(handle)
     }
 }

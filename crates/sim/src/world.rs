@@ -1122,6 +1122,19 @@ impl World {
         }))
     }
 
+    /// Sets the drawing [`World::object_collider_mesh`] returns for `handle` — one built before
+    /// from the same library object's same collider (a cache of [`crate::shapes::LibraryShapes`]);
+    /// a drawing already built is kept.
+    pub(crate) fn set_object_collider_mesh(
+        &mut self,
+        handle: ObjectHandle,
+        drawing: Mesh,
+    ) -> Result<(), WorldError> {
+        let entry = self.entry(handle)?;
+        let _ = entry.drawn_collider.set(drawing);
+        Ok(())
+    }
+
     /// The object's pose `world_from_object` (the mesh frame in the world).
     pub fn object_pose(&self, handle: ObjectHandle) -> Result<Pose, WorldError> {
         let entry = self.entry(handle)?;
