@@ -1,8 +1,10 @@
-//! `--encoder ae` end to end through the real `lgdm` binary built with the `ae` feature: `lgdm
-//! features` writes one finite, unit-norm 256-d row per view with the GOOD table's labels in the
-//! same order; the feature cache is keyed by the checkpoint's bytes; a short `lgdm train --scenario
-//! ni` runs on these features and records the checkpoint; a missing checkpoint or Python module
-//! is an error that names it. Needs numpy, torch and train_ae in the venv (`$VIRTUAL_ENV`,
+//! `--encoder ae` and `--grasp network` end to end through the real `lgdm` binary built with the
+//! `ae` feature: `lgdm features` writes one finite, unit-norm 256-d row per view with the GOOD
+//! table's labels in the same order; the feature cache is keyed by the checkpoint's bytes; a short
+//! `lgdm train --scenario ni` runs on these features and records the checkpoint; a missing
+//! checkpoint or Python module is an error that names it; `lgdm sim grasp --grasp network` plays
+//! isolated rounds with the shipped network, every attempt with a grasp in the crop or the reason
+//! none was found. Needs numpy, torch and train_ae in the venv (`$VIRTUAL_ENV`,
 //! `$LGDM_VENV` or ~/.cache/lgdm/venv): `cargo test --release -p lgdm-cli --features ae --test
 //! e2e_ae`.
 
@@ -296,4 +298,85 @@ fn without_ae_checkpoint_the_shipped_one_is_used_or_the_flag_is_named() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("--ae-checkpoint"), "{err}");
     }
+}
+
+/// `lgdm sim grasp --grasp network` with the shipped checkpoint: results.json names the source,
+/// every attempt tried a network grasp (crop pixels, jaw = the finger width in the 224-px crop)
+/// or failed with `no_grasp_found`; a missing `--ae-checkpoint` is named before any round runs.
+#[test]
+fn sim_grasp_network_plays_isolated_rounds() {
+    let dir = work_dir().join("sim");
+    std::fs::create_dir_all(&dir).unwrap();
+    let sim = |out: &Path, extra: &[&str]| {
+        lgdm(&dir.join("cache"))
+            .args([
+                "sim",
+                "grasp",
+                "--scenario",
+                "isolated",
+                "--grasp",
+                "network",
+            ])
+            .args(["--rounds", "3", "--seed", "0", "--progress", "none"])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .env("OMP_NUM_THREADS", "1")
+            .output()
+            .unwrap()
+    };
+    let out = dir.join("run");
+    check(sim(&out, &[]), "sim grasp --grasp network");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(results["run"]["grasp_source"], "network");
+    let attempts = results["attempts"].as_array().unwrap();
+    assert!(!attempts.is_empty(), "no attempt in 3 rounds");
+    assert_eq!(results["summary"]["attempts"], attempts.len());
+    let mut tried = 0;
+    for a in attempts {
+        let grasp = &a["grasp"];
+        if grasp.is_null() {
+            assert_eq!(
+                a["reason"], "no_grasp_found",
+                "attempt without a grasp: {a}"
+            );
+            continue;
+        }
+        tried += 1;
+        let g = &grasp["crop"];
+        let c = g["center_px"].as_array().unwrap();
+        for v in c {
+            let v = v.as_f64().unwrap();
+            assert!((0.0..224.0).contains(&v), "centre outside the crop: {g}");
+        }
+        // The shipped checkpoint's jaw: 0.02 m of the 0.22 m crop, in its 224 px.
+        let jaw = g["jaw_px"].as_f64().unwrap();
+        assert!(
+            (jaw - 224.0 * 0.02 / 0.22).abs() < 0.05,
+            "jaw {jaw} px: {g}"
+        );
+        assert!(g["width_px"].as_f64().unwrap() >= 0.0, "{g}");
+        assert!(
+            g["quality"].as_f64().unwrap() >= 0.2,
+            "below the threshold: {g}"
+        );
+        if !a["grasp_success"].as_bool().unwrap() {
+            assert!(
+                a["reason"].is_string(),
+                "failed attempt without a reason: {a}"
+            );
+        }
+    }
+    assert!(tried > 0, "the network proposed no grasp in 3 rounds");
+
+    let missing = dir.join("no-such.pt");
+    let err = sim(
+        &dir.join("run2"),
+        &["--ae-checkpoint", missing.to_str().unwrap()],
+    );
+    assert!(!err.status.success());
+    let text = String::from_utf8_lossy(&err.stderr);
+    assert!(text.contains("no-such.pt"), "{text}");
+    assert!(!dir.join("run2").exists());
 }

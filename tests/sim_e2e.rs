@@ -330,6 +330,11 @@ fn bad_input_is_a_clear_error_and_writes_nothing() {
     std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
     assert_fails(sim(&foreign, &["--rounds", "1", "--force"]), &["notes.txt"]);
     assert!(foreign.join("notes.txt").is_file());
+    assert_fails(
+        sim(&out, &["--ae-checkpoint", "ae.pt"]),
+        &["--ae-checkpoint", "only applies to --grasp network"],
+    );
+    assert!(!out.exists());
     #[cfg(not(feature = "ae"))]
     assert_fails(
         sim(&out, &["--grasp", "network"]),

@@ -4,7 +4,7 @@
 //! cargo feature `ae`) — through the feature cache (`lgdm_pointcloud::cache`). This module
 //! chooses and renders progress; the work is the libraries'.
 
-mod ae;
+pub mod ae;
 
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::cache::{self, FeatureCache, GOOD_BINS};
@@ -61,7 +61,7 @@ impl FeatureSource {
                 Ok(FeatureSource::Good)
             }
             Encoder::Ae => Ok(FeatureSource::Ae {
-                checkpoint: ae::resolve_checkpoint(ae_checkpoint)?,
+                checkpoint: ae::resolve_checkpoint(ae_checkpoint, "--encoder ae")?,
             }),
         }
     }

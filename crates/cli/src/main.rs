@@ -5,6 +5,8 @@
 
 mod cmd;
 mod data;
+#[cfg(feature = "ae")]
+mod network;
 mod plot;
 mod progress;
 mod report;

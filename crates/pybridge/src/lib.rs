@@ -8,7 +8,8 @@
 //! - [`data`]: `Dataset` (sequences as numpy arrays), the GOOD descriptor and feature tables,
 //!   dataset generation, projection of clouds to depth / RGB-D images, best-view selection.
 //! - `ae` (cargo feature `ae`): the embedding side: Rust calls the torch autoencoder of
-//!   `python/train_ae` (`AutoEncoder::load`, `infer`) through an embedded interpreter.
+//!   `python/train_ae` (`AutoEncoder::load`, `infer`, `crop_grasps`) through an embedded
+//!   interpreter.
 //! - [`experiment`]: `run_scenario`, the paper's scenarios over trials on a feature table (the
 //!   library code `lgdm train` runs).
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.

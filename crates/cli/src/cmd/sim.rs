@@ -1,7 +1,8 @@
 //! `lgdm sim`: the tabletop robot (`lgdm_sim`).
 //!
 //! `lgdm sim grasp` plays rounds of a grasp scenario (isolated, packed, pile) with one grasp
-//! source (analytic, random, or network with a build that has the `ae` feature) and writes a run
+//! source (analytic, random, or network — the grasp autoencoder, loaded once per run from
+//! `--ae-checkpoint` or the shipped checkpoint, in a build with the `ae` feature) and writes a run
 //! directory: `results.json` (every attempt, every round, the summary with Wilson 95 %
 //! intervals, the config, wall times apart), `summary.txt`, `success_by_category.png` and
 //! `failure_reasons.png`. The objects are the procedural library (`--instances` per category,
@@ -147,6 +148,10 @@ pub struct GraspArgs {
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
+    /// The grasp network's checkpoint for --grasp network (default: the one shipped with
+    /// train_ae, `weights/cpu.pt`).
+    #[arg(long, value_name = "PATH")]
+    pub ae_checkpoint: Option<PathBuf>,
 }
 
 /// Runs `lgdm sim`.
@@ -165,25 +170,43 @@ and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && 
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
 LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
 
-fn source(grasp: GraspArg, seed: u64) -> Result<Box<dyn GraspSource>> {
-    match grasp {
-        GraspArg::Analytic => Ok(builtin_source("analytic", seed)?),
-        GraspArg::Random => Ok(builtin_source("random", seed)?),
-        GraspArg::Network => network_source(),
+/// The grasp source of `args`, loaded once for the whole run.
+fn source(args: &GraspArgs, reporter: &Reporter) -> Result<Box<dyn GraspSource>> {
+    if let (Some(p), false) = (&args.ae_checkpoint, args.grasp == GraspArg::Network) {
+        bail!(
+            "--ae-checkpoint {} only applies to --grasp network",
+            p.display()
+        );
+    }
+    match args.grasp {
+        GraspArg::Analytic => Ok(builtin_source("analytic", args.seed)?),
+        GraspArg::Random => Ok(builtin_source("random", args.seed)?),
+        GraspArg::Network => network_source(args.ae_checkpoint.as_deref(), reporter),
     }
 }
 
 #[cfg(not(feature = "ae"))]
-fn network_source() -> Result<Box<dyn GraspSource>> {
+fn network_source(
+    _checkpoint: Option<&std::path::Path>,
+    _reporter: &Reporter,
+) -> Result<Box<dyn GraspSource>> {
     bail!(NETWORK_NOT_BUILT)
 }
 
+/// The grasp autoencoder ([`crate::network::NetworkSource`]) from `checkpoint`, else the one
+/// shipped with train_ae; a missing venv, module or checkpoint is an error naming it.
 #[cfg(feature = "ae")]
-fn network_source() -> Result<Box<dyn GraspSource>> {
-    bail!(
-        "--grasp network is not implemented yet (the autoencoder grasp source lands with the \
-         grasp network's checkpoint); use --grasp analytic or --grasp random"
-    )
+fn network_source(
+    checkpoint: Option<&std::path::Path>,
+    reporter: &Reporter,
+) -> Result<Box<dyn GraspSource>> {
+    use crate::data::ae::{bridge_error, resolve_checkpoint};
+    use crate::network::NetworkSource;
+    const USER: &str = "--grasp network";
+    let checkpoint = resolve_checkpoint(checkpoint, USER)?;
+    let source = NetworkSource::load(&checkpoint).map_err(|e| bridge_error(e, USER))?;
+    reporter.message(&source.describe());
+    Ok(Box::new(source))
 }
 
 /// The object library: the procedural objects or the meshes of `--meshes`.
@@ -226,7 +249,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
     if args.rounds == 0 {
         bail!("--rounds 0: at least one round is needed");
     }
-    let mut source = source(args.grasp, args.seed)?;
+    let mut source = source(&args, &reporter)?;
     let (objects, objects_label) = library(&args, &reporter)?;
     let mut spec = RunSpec::new(args.scenario.into(), args.rounds, args.seed);
     spec.objects = objects_label;

@@ -1,5 +1,6 @@
-//! `--encoder ae` in the cli: resolving the checkpoint and rendering the progress of
-//! `lgdm_pybridge::ae::dataset_features` (the view pipeline: projection → preprocess → infer).
+//! `--encoder ae` in the cli: resolving the checkpoint (also for `lgdm sim grasp --grasp
+//! network`) and rendering the progress of `lgdm_pybridge::ae::dataset_features` (the view
+//! pipeline: projection → preprocess → infer).
 //! Needs the cargo feature `ae`; without it every entry point fails with how to rebuild and
 //! what to install.
 
@@ -20,9 +21,10 @@ autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && \
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
 LGDM_VENV to it); see the README, \"Grasp network\". Or use --encoder good";
 
-/// The checkpoint to use: `explicit` (`--ae-checkpoint`), else the one shipped with train_ae.
+/// The checkpoint to use: `explicit` (`--ae-checkpoint`), else the one shipped with train_ae;
+/// `user` is the option that needs it (`--encoder ae`, `--grasp network`), for messages.
 #[cfg(not(feature = "ae"))]
-pub fn resolve_checkpoint(_explicit: Option<&Path>) -> Result<PathBuf> {
+pub fn resolve_checkpoint(_explicit: Option<&Path>, _user: &str) -> Result<PathBuf> {
     anyhow::bail!(NOT_BUILT)
 }
 
@@ -33,7 +35,7 @@ pub fn features(_ds: &Dataset, _checkpoint: &Path, _reporter: &Reporter) -> Resu
 }
 
 #[cfg(feature = "ae")]
-pub use with_ae::{PIPELINE, features, resolve_checkpoint};
+pub use with_ae::{PIPELINE, bridge_error, features, resolve_checkpoint};
 
 /// The pipeline's cache-key part; without the feature nothing reaches the cache.
 #[cfg(not(feature = "ae"))]
@@ -55,20 +57,22 @@ mod with_ae {
 
     pub use lgdm_pybridge::ae::PIPELINE;
 
-    /// Maps bridge errors to messages that read well after `error: `.
-    fn bridge_error(e: AeError) -> anyhow::Error {
+    /// Maps bridge errors to messages that read well after `error: `; `user` is the option
+    /// that needed the autoencoder (`--encoder ae`, `--grasp network`).
+    pub fn bridge_error(e: AeError, user: &str) -> anyhow::Error {
         match e {
             AeError::NoDefaultCheckpoint(_) => anyhow::anyhow!(
-                "--encoder ae: {e}; pass a checkpoint with --ae-checkpoint PATH (one written by \
+                "{user}: {e}; pass a checkpoint with --ae-checkpoint PATH (one written by \
                  `python -m train_ae.train`)"
             ),
-            other => anyhow::Error::new(other).context("--encoder ae"),
+            other => anyhow::Error::new(other).context(user.to_string()),
         }
     }
 
     /// The checkpoint to use: `explicit` (`--ae-checkpoint`), else the one shipped with
-    /// train_ae (`train_ae.bridge.default_checkpoint()`); absolute.
-    pub fn resolve_checkpoint(explicit: Option<&Path>) -> Result<PathBuf> {
+    /// train_ae (`train_ae.bridge.default_checkpoint()`); absolute. `user` is the option that
+    /// needs it (`--encoder ae`, `--grasp network`), for messages.
+    pub fn resolve_checkpoint(explicit: Option<&Path>, user: &str) -> Result<PathBuf> {
         let path = match explicit {
             Some(p) => {
                 if !p.is_file() {
@@ -76,7 +80,7 @@ mod with_ae {
                 }
                 p.to_path_buf()
             }
-            None => ae::default_checkpoint().map_err(bridge_error)?,
+            None => ae::default_checkpoint().map_err(|e| bridge_error(e, user))?,
         };
         std::fs::canonicalize(&path).with_context(|| format!("resolving {}", path.display()))
     }
@@ -92,7 +96,7 @@ mod with_ae {
         let (table, stats) = ae::dataset_features(ds, checkpoint, &mut |p: Progress| {
             task.update(p.stage, p.done, p.total)
         })
-        .map_err(bridge_error)?;
+        .map_err(|e| bridge_error(e, "--encoder ae"))?;
         task.finish();
         if stats.empty_views > 0 {
             reporter.message(&format!(

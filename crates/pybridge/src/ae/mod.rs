@@ -10,7 +10,8 @@
 //! and where it looked ([`AeError::Missing`]).
 //!
 //! [`views`] turns point-cloud views into the network's input and a dataset into a feature
-//! table (`--encoder ae`).
+//! table (`--encoder ae`); [`grasps`] turns an object-centred crop into ranked grasps in crop
+//! pixels (the robot's `--grasp network`).
 //!
 //! ```no_run
 //! use lgdm_pybridge::ae::AutoEncoder;
@@ -29,8 +30,10 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyModule;
 
+pub mod grasps;
 pub mod views;
 
+pub use grasps::{crop_from_input, decode_params};
 pub use views::{AE_BATCH, FeatureStats, PIPELINE, ViewImage, dataset_features, view_image};
 
 /// Length of the autoencoder's feature vector.
@@ -66,6 +69,9 @@ pub enum AeError {
     /// Python raised during inference, or returned something unexpected.
     #[error("autoencoder inference: {0}")]
     Python(String),
+    /// Decoding the network's grasp maps failed (bad parameters or non-finite maps).
+    #[error("decoding the grasp maps: {0}")]
+    Decode(#[from] lgdm_pointcloud::grasp::decode::GraspDecodeError),
     /// `train_ae.bridge.default_checkpoint()` is missing or names no file.
     #[error("no default autoencoder checkpoint: {0}")]
     NoDefaultCheckpoint(String),
@@ -218,6 +224,7 @@ pub struct AutoEncoder {
     bridge: Py<PyModule>,
     model: Py<PyAny>,
     input_size: usize,
+    jaw_side_fraction: Option<f32>,
 }
 
 impl AutoEncoder {
@@ -245,10 +252,32 @@ impl AutoEncoder {
                 .call_method1("input_size", (&model,))
                 .and_then(|s| s.extract())
                 .map_err(ckpt_err)?;
+            if !bridge.hasattr("jaw_side_fraction").unwrap_or(false) {
+                return Err(AeError::Checkpoint {
+                    path: checkpoint.to_path_buf(),
+                    reason: format!(
+                        "the installed train_ae ({}) has no `bridge.jaw_side_fraction()`: it \
+                         predates decoding with the gripper's jaw; update it (`pip install -e \
+                         python/train_ae`)",
+                        module_file(&bridge)
+                    ),
+                });
+            }
+            let jaw_side_fraction: Option<f32> = bridge
+                .call_method1("jaw_side_fraction", (&model,))
+                .and_then(|j| j.extract())
+                .map_err(ckpt_err)?;
+            if jaw_side_fraction.is_some_and(|j| !(j.is_finite() && j > 0.0 && j <= 1.0)) {
+                return Err(AeError::Checkpoint {
+                    path: checkpoint.to_path_buf(),
+                    reason: format!("its jaw_side_fraction {jaw_side_fraction:?} is not in (0, 1]"),
+                });
+            }
             Ok(AutoEncoder {
                 bridge: bridge.unbind(),
                 model: model.unbind(),
                 input_size,
+                jaw_side_fraction,
             })
         })
     }
@@ -256,6 +285,13 @@ impl AutoEncoder {
     /// The square side (pixels) the model was trained at; render or project to it.
     pub fn input_size(&self) -> usize {
         self.input_size
+    }
+
+    /// The decoded jaw as a fraction of the map side, from the checkpoint's config
+    /// (`train_ae.bridge.jaw_side_fraction`: the training data's finger width over its crop
+    /// side); `None`: half the opening (Cornell's convention, older checkpoints).
+    pub fn jaw_side_fraction(&self) -> Option<f32> {
+        self.jaw_side_fraction
     }
 
     /// The network input of one image (`train_ae.bridge.preprocess`): `rgb` h × w × 3 bytes and

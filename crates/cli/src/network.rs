@@ -1,0 +1,77 @@
+//! `lgdm sim grasp --grasp network` (cargo feature `ae`): the grasp autoencoder as a
+//! [`GraspSource`]. [`NetworkSource`] loads the checkpoint once per run
+//! (`lgdm_pybridge::ae::AutoEncoder`: embedded Python, the venv's numpy, torch and train_ae)
+//! and answers each object-centred crop with `AutoEncoder::crop_grasps` — the crop resized to
+//! the model's input, one inference, the quality / angle / width maps decoded by the Rust
+//! decoder with the checkpoint's jaw, the grasps moved back to crop pixels — so they carry the
+//! conventions of the analytic source (crop pixels, best first, at most k).
+//!
+//! It lives here, at the one crate that links both sides: `lgdm-sim` (the trait) must not need
+//! torch, and `lgdm-pybridge` (also the Python extension module) should not pull in the
+//! physics. The work itself is in `lgdm_pybridge::ae::grasps`, which needs only
+//! `lgdm-pointcloud`'s types; this adapter only maps errors.
+//!
+//! ```ignore
+//! let mut source = NetworkSource::load(&checkpoint)?; // once per run
+//! let grasps = source.grasps(&query, 3)?;             // per crop
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pybridge::ae::{AeError, AutoEncoder};
+use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
+
+/// The grasp autoencoder behind [`GraspSource`] (`network`).
+#[derive(Debug)]
+pub struct NetworkSource {
+    model: AutoEncoder,
+    checkpoint: PathBuf,
+}
+
+impl NetworkSource {
+    /// The source's name, as `--grasp` spells it.
+    pub const NAME: &'static str = "network";
+
+    /// Loads `checkpoint` (starts the embedded interpreter, imports numpy, torch and
+    /// `train_ae.bridge` from the venv); errors name what is missing and where it looked.
+    pub fn load(checkpoint: &Path) -> Result<NetworkSource, AeError> {
+        Ok(NetworkSource {
+            model: AutoEncoder::load(checkpoint)?,
+            checkpoint: checkpoint.to_path_buf(),
+        })
+    }
+
+    /// One line for the run's log: the checkpoint, the input side and the jaw.
+    pub fn describe(&self) -> String {
+        let jaw = match self.model.jaw_side_fraction() {
+            Some(j) => format!("jaw {j:.4} of the side"),
+            None => "jaw = opening / 2".into(),
+        };
+        format!(
+            "grasp network: {} ({} px input, {jaw})",
+            self.checkpoint.display(),
+            self.model.input_size()
+        )
+    }
+}
+
+impl GraspSource for NetworkSource {
+    fn name(&self) -> &str {
+        Self::NAME
+    }
+
+    fn grasps(
+        &mut self,
+        query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError> {
+        self.model.crop_grasps(query.crop, k).map_err(|e| match e {
+            AeError::Input(message) => SourceError::BadCrop(message),
+            other => SourceError::Other {
+                source_name: Self::NAME.into(),
+                message: other.to_string(),
+            },
+        })
+    }
+}

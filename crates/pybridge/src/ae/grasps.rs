@@ -1,0 +1,136 @@
+//! The autoencoder as a grasp proposer: one object-centred crop ([`ObjectCrop`], 224 px of
+//! 0.22 m of table by default, the crop every grasp image of `lgdm gen-dataset` is) →
+//! `train_ae.bridge.preprocess` at the model's input size (the training resize, e.g. 224 → 112
+//! by area averaging) → `infer` → the quality, cos 2θ, sin 2θ and width maps decoded by the
+//! Rust decoder ([`decode_grasps`], train_ae's `decode_grasps` step for step) with the
+//! checkpoint's jaw ([`AutoEncoder::jaw_side_fraction`]) → the grasps moved from input pixels
+//! back to crop pixels ([`crop_from_input`]: pixel-centre aligned, lengths × crop/input side,
+//! angle and quality unchanged).
+//!
+//! The result has the conventions of `lgdm_pointcloud::grasp::analytic` (crop pixels, best
+//! first, at most k), so the robot places either the same way. `python -m train_ae.evaluate`
+//! decodes the same maps with the same parameters (top-1, threshold 0.2, peaks 20 px apart at
+//! the input resolution, jaw = `jaw_side_fraction` × input side): the two score the same crop
+//! alike (`tests/ae_bridge.rs` checks it).
+//!
+//! ```no_run
+//! use lgdm_pybridge::ae::{AutoEncoder, default_checkpoint};
+//! # fn crop() -> lgdm_pointcloud::crop::ObjectCrop { unimplemented!() }
+//! let ae = AutoEncoder::load(&default_checkpoint()?)?;
+//! let grasps = ae.crop_grasps(&crop(), 3)?; // crop pixels, best first
+//! assert!(grasps.len() <= 3);
+//! # Ok::<(), lgdm_pybridge::ae::AeError>(())
+//! ```
+
+use lgdm_pointcloud::crop::ObjectCrop;
+use lgdm_pointcloud::grasp::decode::{
+    DecodedGrasp, GraspDecodeParams, GraspMapsView, InputCrop, decode_grasps,
+};
+
+use super::{AeError, AutoEncoder};
+
+/// The decoder parameters for at most `k` grasps (at least 1) with the jaw of a checkpoint
+/// (`jaw_side_fraction`, `None`: half the opening); every other field is train_ae's default, as
+/// `python -m train_ae.evaluate` decodes.
+pub fn decode_params(jaw_side_fraction: Option<f32>, k: usize) -> GraspDecodeParams {
+    GraspDecodeParams {
+        num_grasps: k.max(1),
+        jaw_side_fraction,
+        ..GraspDecodeParams::default()
+    }
+}
+
+/// A grasp decoded on the `input_px`-side maps, in the pixels of the `crop_px`-side crop they
+/// were resized from: the centre pixel-centre aligned (`(x + ½)·s − ½`, the [`InputCrop`]
+/// convention of the training resize), opening and jaw × `s`, angle and quality unchanged, with
+/// `s = crop_px / input_px`.
+pub fn crop_from_input(grasp: &DecodedGrasp, crop_px: usize, input_px: usize) -> DecodedGrasp {
+    let s = crop_px as f32 / input_px as f32;
+    let window = InputCrop {
+        x0_px: 0.0,
+        y0_px: 0.0,
+        image_px_per_map_px: s,
+    };
+    DecodedGrasp {
+        center_px: window.image_from_map(grasp.center_px),
+        width_px: grasp.width_px * s,
+        jaw_px: grasp.jaw_px * s,
+        ..*grasp
+    }
+}
+
+impl AutoEncoder {
+    /// The decoder parameters of this checkpoint for at most `k` grasps ([`decode_params`] with
+    /// [`AutoEncoder::jaw_side_fraction`]).
+    pub fn decode_params(&self, k: usize) -> GraspDecodeParams {
+        decode_params(self.jaw_side_fraction(), k)
+    }
+
+    /// At most `k` grasps on `crop`, best first, in crop pixels (see the module docs); an empty
+    /// list when no peak of the quality map reaches the threshold or `k` is 0. Errors: a
+    /// malformed crop ([`AeError::Input`]), Python ([`AeError::Python`]), non-finite maps
+    /// ([`AeError::Decode`]).
+    pub fn crop_grasps(&self, crop: &ObjectCrop, k: usize) -> Result<Vec<DecodedGrasp>, AeError> {
+        let n = crop.size_px as usize;
+        if n == 0 || crop.rgb.len() != n * n || crop.depth_m.len() != n * n {
+            return Err(AeError::Input(format!(
+                "a {n} × {n} px crop needs {} colours and depths, got {} and {}",
+                n * n,
+                crop.rgb.len(),
+                crop.depth_m.len()
+            )));
+        }
+        if k == 0 {
+            return Ok(Vec::new());
+        }
+        let s = self.input_size();
+        let x = self.preprocess(crop.rgb.as_flattened(), &crop.depth_m, n, n)?;
+        let out = self.infer(&x, 1, s, s)?;
+        let maps = GraspMapsView {
+            rows: s,
+            cols: s,
+            quality: &out.quality,
+            cos2t: &out.cos2t,
+            sin2t: &out.sin2t,
+            width: &out.width,
+        };
+        Ok(decode_grasps(maps, &self.decode_params(k))?
+            .iter()
+            .map(|g| crop_from_input(g, n, s))
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Input pixel 0 covers crop pixels 0 and 1 (centre 0.5); lengths double; the angle stays.
+    #[test]
+    fn input_grasps_map_to_crop_pixels_pixel_centre_aligned() {
+        let g = DecodedGrasp {
+            center_px: [0.0, 55.5],
+            angle: 0.7,
+            width_px: 20.0,
+            jaw_px: 10.0,
+            quality: 0.9,
+        };
+        let c = crop_from_input(&g, 224, 112);
+        assert_eq!(c.center_px, [0.5, 111.5]);
+        assert_eq!((c.width_px, c.jaw_px), (40.0, 20.0));
+        assert_eq!((c.angle, c.quality), (0.7, 0.9));
+        // At the crop's own size nothing moves.
+        assert_eq!(crop_from_input(&g, 112, 112), g);
+    }
+
+    #[test]
+    fn decode_params_carry_the_checkpoint_jaw_and_k() {
+        let p = decode_params(Some(0.09), 3);
+        assert_eq!((p.num_grasps, p.jaw_side_fraction), (3, Some(0.09)));
+        assert_eq!(
+            p.quality_threshold,
+            GraspDecodeParams::default().quality_threshold
+        );
+        assert_eq!(decode_params(None, 0).num_grasps, 1);
+    }
+}
