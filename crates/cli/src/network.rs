@@ -41,19 +41,6 @@ impl NetworkSource {
             checkpoint: checkpoint.to_path_buf(),
         })
     }
-
-    /// One line for the run's log: the checkpoint, the input side and the jaw.
-    pub fn describe(&self) -> String {
-        let jaw = match self.model.jaw_side_fraction() {
-            Some(j) => format!("jaw {j:.4} of the side"),
-            None => "jaw = opening / 2".into(),
-        };
-        format!(
-            "grasp network: {} ({} px input, {jaw})",
-            self.checkpoint.display(),
-            self.model.input_size()
-        )
-    }
 }
 
 impl GraspSource for NetworkSource {
@@ -73,5 +60,18 @@ impl GraspSource for NetworkSource {
                 message: other.to_string(),
             },
         })
+    }
+
+    /// The checkpoint, the input side and the jaw (also printed when the run starts).
+    fn describe(&self) -> String {
+        let jaw = match self.model.jaw_side_fraction() {
+            Some(j) => format!("jaw {j:.4} of the side"),
+            None => "jaw = opening / 2".into(),
+        };
+        format!(
+            "grasp network: {} ({} px input, {jaw})",
+            self.checkpoint.display(),
+            self.model.input_size()
+        )
     }
 }

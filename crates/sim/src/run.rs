@@ -467,6 +467,8 @@ pub struct RunInfo {
     pub scenario: Scenario,
     /// The grasp source's name.
     pub grasp_source: String,
+    /// The source as it describes itself (the network: its checkpoint, input size and jaw).
+    pub grasp_source_detail: String,
     /// Rounds played.
     pub rounds: usize,
     /// Base seed.
@@ -1114,6 +1116,7 @@ fn play<'a>(
         run: RunInfo {
             scenario: spec.scenario,
             grasp_source: runner.source.name().to_string(),
+            grasp_source_detail: runner.source.describe(),
             rounds: spec.rounds,
             seed: spec.seed,
             objects: spec.objects.clone(),

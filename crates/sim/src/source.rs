@@ -98,6 +98,12 @@ pub trait GraspSource {
         query: &GraspQuery<'_>,
         k: usize,
     ) -> Result<Vec<DecodedGrasp>, SourceError>;
+
+    /// What a run records about the source beside its name (e.g. the network's checkpoint);
+    /// the name by default.
+    fn describe(&self) -> String {
+        self.name().to_string()
+    }
 }
 
 /// Opening axes the robot's analytic source tries per centre: every 5° (the labeller's 12, every
