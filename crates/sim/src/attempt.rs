@@ -41,6 +41,7 @@ use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rapier3d::parry::query::Ray;
 use serde::{Deserialize, Serialize};
 
+use crate::arm::Joints;
 use crate::gripper::{Contactee, GripperPart};
 use crate::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
 use crate::perception::{ObjectView, WorldGrasp};
@@ -373,6 +374,9 @@ pub struct Cell {
     pub robot: Robot,
     /// IK for the robot's arm (reused between moves).
     pub ik: IkSolver,
+    /// The joints of the ready pose, where [`park`] brings the arm back to (home for
+    /// [`Cell::new`]).
+    pub ready_rad: Joints,
 }
 
 impl Cell {
@@ -382,7 +386,12 @@ impl Cell {
         let stroke = config.gripper.stroke_m;
         let robot = Robot::new(&mut world, config, &home, stroke)?;
         let ik = IkSolver::new(robot.arm().clone(), IkConfig::default())?;
-        Ok(Self { world, robot, ik })
+        Ok(Self {
+            world,
+            robot,
+            ik,
+            ready_rad: home,
+        })
     }
 
     /// Adds the robot to `world` with its tool at `config`'s ready pose (top-down, the jaw yaw
@@ -412,7 +421,12 @@ impl Cell {
             })?
             .joints_rad;
         let robot = Robot::new(&mut world, robot, &ready, stroke)?;
-        Ok(Self { world, robot, ik })
+        Ok(Self {
+            world,
+            robot,
+            ik,
+            ready_rad: ready,
+        })
     }
 
     /// Height of the table top (m).
@@ -1051,6 +1065,19 @@ pub fn park(
         && let Ok(back) = plan_straight_top_down(cell, ready, yaw, &config.transit, wall)
     {
         follow(cell, &back, false, wall)?;
+    }
+    // Then the ready joints exactly — at the ready point this only turns the wrist back — so
+    // turns do not add up over the attempts of a round until the wrist reaches its limit.
+    let q0 = cell.robot.joints_rad();
+    let q_ready = cell.ready_rad;
+    if q0 != q_ready {
+        let arm = cell.robot.arm().clone();
+        let go = wall.time(Work::Planning, || {
+            JointTrajectory::point_to_point(&arm, &q0, &q_ready)
+        });
+        if let Ok(go) = go {
+            follow(cell, &go, false, wall)?;
+        }
     }
     Ok(())
 }

@@ -10,7 +10,7 @@
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
 use lgdm_sim::attempt::{
-    AttemptConfig, Cell, FailureReason, GraspPlan, WallTimes, execute, plan_grasp,
+    AttemptConfig, Cell, FailureReason, GraspPlan, WallTimes, execute, park, plan_grasp,
 };
 use lgdm_sim::perception::{Perception, WorldGrasp};
 use lgdm_sim::robot::RobotConfig;
@@ -124,6 +124,10 @@ fn a_placed_object_ends_in_the_basket() {
     let (lo, hi) = cell.world.config().baskets[0].inner_bounds_m();
     assert!((0..2).all(|i| com[i] > lo[i] && com[i] < hi[i]), "{com:?}");
     assert!(!on_table(&cell.world, h).unwrap());
+    // Parking returns to the ready joints exactly, so wrist turns cannot add up over a
+    // round's attempts (they once drove joint 6 to its limit: "unreachable").
+    park(&mut cell, plan.pregrasp_z_m, &config, &mut wall).unwrap();
+    assert_eq!(cell.robot.joints_rad(), cell.ready_rad);
 }
 
 /// Closing the gripper over an empty spot of the table is a miss, not a grasp.
