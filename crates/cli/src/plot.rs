@@ -64,6 +64,28 @@ fn write_png(path: &Path, buf: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// A line chart of named series of (x, y) points (no bands); `unit_range` fixes y to [0, 1].
+pub fn write_lines(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    lines: &[(String, Vec<(f64, f64)>)],
+    unit_range: bool,
+) -> Result<()> {
+    let all: Vec<Series> = lines
+        .iter()
+        .map(|(name, points)| Series {
+            name: name.clone(),
+            points: points
+                .iter()
+                .map(|&(x, y)| (x, MeanStd { mean: y, std: 0.0 }))
+                .collect(),
+        })
+        .collect();
+    line_chart(path, title, x_desc, y_desc, &all, unit_range)
+}
+
 fn line_chart(
     path: &Path,
     title: &str,

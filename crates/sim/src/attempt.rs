@@ -314,6 +314,10 @@ pub struct WallTimes {
     pub planning_s: f64,
     /// Physics steps (robot motions, settling).
     pub physics_s: f64,
+    /// Recognition and learning: features of the object's views, the dual memory's prediction,
+    /// the teacher's lesson and replay (rendering the views counts as rendering).
+    #[serde(default)]
+    pub recognition_s: f64,
 }
 
 impl WallTimes {
@@ -325,6 +329,7 @@ impl WallTimes {
         self.source_s += other.source_s;
         self.planning_s += other.planning_s;
         self.physics_s += other.physics_s;
+        self.recognition_s += other.recognition_s;
     }
 }
 
@@ -341,6 +346,8 @@ pub enum Work {
     Planning,
     /// Physics.
     Physics,
+    /// Recognition and learning.
+    Recognition,
 }
 
 impl WallTimes {
@@ -355,6 +362,7 @@ impl WallTimes {
             Work::Source => self.source_s += d,
             Work::Planning => self.planning_s += d,
             Work::Physics => self.physics_s += d,
+            Work::Recognition => self.recognition_s += d,
         }
         out
     }

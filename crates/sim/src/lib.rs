@@ -21,6 +21,9 @@
 //! - [`perception`]: segmentation of the overview, one object-centred crop per object, crop
 //!   grasps back to top-down grasps in the world.
 //! - [`source`]: the [`source::GraspSource`] trait and the `analytic` and `random` sources.
+//! - [`recognize`]: recognition in the loop — the object's views from the dataset's viewing
+//!   geometry, the dataset's GOOD features, the dual memory's first guess with a confidence, the
+//!   simulated teacher's lessons and replay.
 //! - [`attempt`]: one attempt (approach, guarded descent, close, lift, judge, carry, release,
 //!   judge) with strict and contact-only success and a failure reason.
 //! - [`scenario`]: isolated, packed and pile tables.
@@ -81,6 +84,7 @@ pub mod camera;
 pub mod gripper;
 pub mod ik;
 pub mod perception;
+pub mod recognize;
 pub mod record;
 pub mod robot;
 pub mod run;

@@ -48,6 +48,10 @@ use crate::attempt::{
 };
 use crate::camera::CameraConfig;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
+use crate::recognize::{
+    ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionError, RecognitionRecord,
+    Recognizer,
+};
 use crate::record::{
     GraspShown, RecordCamera, RecordConfig, RecordError, Recorder, RoundRecording, RoundSink,
     basket_camera,
@@ -124,6 +128,9 @@ pub struct RunSpec {
     pub seed: u64,
     /// Where the objects came from (`procedural` or the meshes directory), for the record.
     pub objects: String,
+    /// Stop after this many attempts in all (none: play every round).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_attempts: Option<usize>,
     /// Every constant.
     pub config: SimConfig,
 }
@@ -136,6 +143,7 @@ impl RunSpec {
             rounds,
             seed,
             objects: "procedural".into(),
+            max_attempts: None,
             config: SimConfig::default(),
         }
     }
@@ -147,6 +155,9 @@ pub enum SimError {
     /// `rounds` is 0.
     #[error("rounds must be at least 1")]
     NoRounds,
+    /// `max_attempts` is 0.
+    #[error("the attempt budget must be at least 1")]
+    NoAttempts,
     /// The object library is empty.
     #[error("the object library is empty")]
     EmptyLibrary,
@@ -169,6 +180,9 @@ pub enum SimError {
     /// Recording a round failed.
     #[error(transparent)]
     Record(#[from] RecordError),
+    /// Recognition or learning failed.
+    #[error("recognition: {0}")]
+    Recognition(#[from] RecognitionError),
     /// The run directory cannot be used or written.
     #[error("run directory {}: {reason}", path.display())]
     RunDir {
@@ -251,6 +265,9 @@ pub struct AttemptRecord {
     pub placement_success: bool,
     /// Why it failed.
     pub reason: Option<FailureReason>,
+    /// Recognition of the object aimed at, and the teacher's part (pick-and-place runs only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition: Option<RecognitionRecord>,
     /// Measurements.
     pub measured: Measurements,
     /// Simulated seconds the attempt took (including parking the arm after it).
@@ -272,6 +289,8 @@ pub enum RoundEnd {
     GraspsExhausted,
     /// The per-round attempt cap.
     AttemptCap,
+    /// The run's attempt budget ([`RunSpec::max_attempts`]) was spent.
+    AttemptBudget,
     /// The camera saw no object on the table.
     NothingSeen,
 }
@@ -404,6 +423,19 @@ pub struct Summary {
     pub per_category: BTreeMap<String, CategorySummary>,
     /// Failed attempts per reason (every reason listed).
     pub failure_reasons: BTreeMap<String, usize>,
+    /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
+    /// (one per object per round: the first attempt at it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition_accuracy: Option<Rate>,
+    /// Pick-and-place: first guesses whose instance was right (and trusted) / recognitions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instance_recognition_accuracy: Option<Rate>,
+    /// Pick-and-place: recognitions in which the teacher stepped in.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teacher_interventions: Option<usize>,
+    /// Pick-and-place: teacher interventions / recognitions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teacher_intervention_rate: Option<Rate>,
 }
 
 /// Summarises attempts and rounds.
@@ -449,7 +481,20 @@ pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord]) -> Summary 
     }
     let presented: usize = rounds.iter().map(|r| r.objects.len()).sum();
     let placed: usize = rounds.iter().map(|r| r.placed).sum();
+    let looks: Vec<&RecognitionRecord> = attempts
+        .iter()
+        .filter_map(|a| a.recognition.as_ref())
+        .filter(|r| r.first_look)
+        .collect();
+    let any = attempts.iter().any(|a| a.recognition.is_some());
+    let looked = |f: &dyn Fn(&RecognitionRecord) -> bool| {
+        any.then(|| Rate::new(looks.iter().filter(|r| f(r)).count(), looks.len()))
+    };
     Summary {
+        recognition_accuracy: looked(&|r| r.category_correct),
+        instance_recognition_accuracy: looked(&|r| r.instance_correct),
+        teacher_interventions: any.then(|| looks.iter().filter(|r| r.teacher).count()),
+        teacher_intervention_rate: looked(&|r| r.teacher),
         attempts: n,
         grasp_success_rate: Rate::new(count(&|a| a.grasp_success, &all), n),
         placement_success_rate: Rate::new(count(&|a| a.placement_success, &all), n),
@@ -492,6 +537,9 @@ pub struct RunWall {
     pub per_attempt_s: f64,
     /// Simulated seconds per wall second over the whole run.
     pub real_time_factor: f64,
+    /// Seconds of intrinsic replay at the rounds' ends (pick-and-place).
+    #[serde(default)]
+    pub replay_s: f64,
 }
 
 /// Everything `results.json` holds.
@@ -509,8 +557,26 @@ pub struct RunResults {
     pub rounds: Vec<RoundRecord>,
     /// Every constant.
     pub config: SimConfig,
+    /// Pick-and-place: the recognition's setup, labels and memory over the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition: Option<RecognitionRun>,
     /// Wall-clock totals (not deterministic).
     pub wall: RunWall,
+}
+
+/// The recognition side of a pick-and-place run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecognitionRun {
+    /// The feature encoder ([`ENCODER`]).
+    pub encoder: String,
+    /// The model the run started from (`empty`, or the checkpoint given).
+    pub start_model: String,
+    /// Recognition constants.
+    pub config: RecognitionConfig,
+    /// Category and instance names by id at the end of the run (the model's ids).
+    pub labels: Labels,
+    /// Node counts of both memories at the start and after every round.
+    pub memory: Vec<MemoryPoint>,
 }
 
 impl RunResults {
@@ -559,6 +625,16 @@ struct Runner<'a, F: FnMut(&RunProgress)> {
     record: Option<(&'a RecordConfig, &'a mut dyn RoundSink)>,
     /// The recorder of the round in progress, when it is recorded.
     recorder: Option<Recorder>,
+    /// Recognition in the loop (pick-and-place), when on.
+    recognizer: Option<&'a mut Recognizer>,
+    /// Node counts after each round (with a recognizer).
+    memory: Vec<MemoryPoint>,
+    /// Seconds of the rounds' end (replay).
+    replay_s: f64,
+    /// The round's recognitions so far, by object.
+    recognised: Vec<(ObjectHandle, RecognitionRecord)>,
+    /// The recognition of the attempt in progress, for its record.
+    pending_recognition: Option<RecognitionRecord>,
 }
 
 /// The timer and counters of one attempt in progress.
@@ -697,6 +773,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             contact_only_success: exec.contact_only_success,
             placement_success: exec.placement_success,
             reason: exec.reason,
+            recognition: self.pending_recognition.take(),
             measured: exec.measured,
             sim_time_s: cell.world.time_s() - clock.sim_start_s,
             wall: clock.wall,
@@ -705,6 +782,52 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             r.attempt_recorded(attempt_caption(a));
         }
         self.progress();
+    }
+
+    /// Recognition in the loop: the first guess about `target` (once per object and round; later
+    /// attempts at it repeat that record), the teacher's lesson when needed. Kept for the
+    /// attempt's record. Nothing without a recognizer or a known target.
+    fn recognise(
+        &mut self,
+        cell: &Cell,
+        target: Option<ObjectHandle>,
+        objects: &[PlacedObject],
+        clock: &mut AttemptClock,
+    ) -> Result<(), SimError> {
+        self.pending_recognition = None;
+        let (Some(recognizer), Some(h)) = (self.recognizer.as_deref_mut(), target) else {
+            return Ok(());
+        };
+        let Some(object) = objects.iter().find(|o| o.handle == h) else {
+            return Ok(());
+        };
+        if let Some((_, earlier)) = self.recognised.iter().find(|(k, _)| *k == h) {
+            self.pending_recognition = Some(RecognitionRecord {
+                first_look: false,
+                ..earlier.clone()
+            });
+            return Ok(());
+        }
+        let instance = &self.library[object.library_index].name;
+        let record =
+            recognizer.encounter(&cell.world, h, &object.category, instance, &mut clock.wall)?;
+        if let Some(r) = &self.recorder {
+            r.log(
+                &cell.world,
+                crate::record::LogLevel::Info,
+                &recognition_caption(&record),
+            );
+        }
+        self.recognised.push((h, record.clone()));
+        self.pending_recognition = Some(record);
+        Ok(())
+    }
+
+    /// Whether the run's attempt budget is spent.
+    fn budget_spent(&self) -> bool {
+        self.spec
+            .max_attempts
+            .is_some_and(|max| self.attempts.len() >= max)
     }
 
     fn no_grasp() -> Execution {
@@ -810,6 +933,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let setup_s = setup_start.elapsed().as_secs_f64();
         let sim_start = cell.world.time_s();
         let first_attempt = self.attempts.len();
+        self.recognised.clear();
         let mut placed = 0usize;
         let mut left_table = Vec::new();
         let ended_by = match scenario {
@@ -821,6 +945,12 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let mut wall = WallTimes::default();
         for a in &self.attempts[first_attempt..] {
             wall.add(&a.wall);
+        }
+        if let Some(recognizer) = self.recognizer.as_deref_mut() {
+            let start = Instant::now();
+            let point = recognizer.end_round(&mut wall)?;
+            self.replay_s += start.elapsed().as_secs_f64();
+            self.memory.push(point);
         }
         wall.finish(round_start);
         let record = RoundRecord {
@@ -891,10 +1021,15 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let views = [view];
         let mut first = Some(clock);
         for (i, candidate) in candidates.iter().enumerate() {
+            if self.budget_spent() {
+                return Ok(RoundEnd::AttemptBudget);
+            }
             let mut clock = first
                 .take()
                 .unwrap_or_else(|| AttemptClock::start(&cell.world));
             let pose = cell.world.object_pose(object.handle).ok();
+            let aimed = views[0].object.or(Some(object.handle));
+            self.recognise(cell, aimed, objects, &mut clock)?;
             let (target, grasp, exec) = self.attempt(cell, &views, candidate, &mut clock)?;
             let done = exec.placement_success;
             if done {
@@ -957,6 +1092,9 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             if tries >= cfg.max_attempts_per_round {
                 return Ok(RoundEnd::AttemptCap);
             }
+            if self.budget_spent() {
+                return Ok(RoundEnd::AttemptBudget);
+            }
             let mut clock = AttemptClock::start(&cell.world);
             let scene = self.look(cell, &mut clock)?;
             let mut views = Vec::new();
@@ -995,6 +1133,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             };
             let target = views[candidate.view].object;
             let pose = target.and_then(|h| cell.world.object_pose(h).ok());
+            self.recognise(cell, target, objects, &mut clock)?;
             let (target, grasp, exec) = self.attempt(cell, &views, candidate, &mut clock)?;
             if exec.placement_success {
                 *placed += 1;
@@ -1030,7 +1169,27 @@ pub fn run_trials(
     source: &mut dyn GraspSource,
     on_progress: impl FnMut(&RunProgress),
 ) -> Result<RunResults, SimError> {
-    play(spec, library, source, on_progress, None)
+    play(spec, library, source, on_progress, None, None)
+}
+
+/// Pick-and-place with lifelong recognition: rounds of `spec.scenario` (packed or pile) as
+/// [`run_trials`] plays them, where before each attempt the object aimed at is recognised by
+/// `recognizer` (once per object and round) and taught when the robot did not know it or was
+/// wrong, with replay after each round (see [`crate::recognize`]). The recognizer keeps the
+/// model it learnt; the results hold every recognition, the first-guess accuracy, the teacher
+/// interventions and the node counts after each round. `record` as in [`run_trials_recorded`].
+pub fn run_pick_place<'a>(
+    spec: &'a RunSpec,
+    library: &'a [ObjectModel],
+    source: &'a mut dyn GraspSource,
+    recognizer: &'a mut Recognizer,
+    on_progress: impl FnMut(&RunProgress),
+    record: Option<(&'a RecordConfig, &'a mut dyn RoundSink)>,
+) -> Result<RunResults, SimError> {
+    if let Some((config, _)) = &record {
+        config.validate()?;
+    }
+    play(spec, library, source, on_progress, record, Some(recognizer))
 }
 
 /// [`run_trials`], recording the rounds `record` selects into `sink` as they end (see
@@ -1044,7 +1203,14 @@ pub fn run_trials_recorded(
     sink: &mut dyn RoundSink,
 ) -> Result<RunResults, SimError> {
     record.validate()?;
-    play(spec, library, source, on_progress, Some((record, sink)))
+    play(
+        spec,
+        library,
+        source,
+        on_progress,
+        Some((record, sink)),
+        None,
+    )
 }
 
 fn play<'a>(
@@ -1053,10 +1219,14 @@ fn play<'a>(
     source: &'a mut dyn GraspSource,
     on_progress: impl FnMut(&RunProgress),
     record: Option<(&'a RecordConfig, &'a mut dyn RoundSink)>,
+    recognizer: Option<&'a mut Recognizer>,
 ) -> Result<RunResults, SimError> {
     let start = Instant::now();
     if spec.rounds == 0 {
         return Err(SimError::NoRounds);
+    }
+    if spec.max_attempts == Some(0) {
+        return Err(SimError::NoAttempts);
     }
     if library.is_empty() {
         return Err(SimError::EmptyLibrary);
@@ -1076,6 +1246,11 @@ fn play<'a>(
         on_progress,
         record,
         recorder: None,
+        memory: recognizer.iter().map(|r| r.memory_point()).collect(),
+        recognizer,
+        replay_s: 0.0,
+        recognised: Vec::new(),
+        pending_recognition: None,
     };
     // Decompose every object the rounds will show ahead, in parallel (the picks are the
     // rounds' first draws; the same seeds draw them again in each round).
@@ -1096,6 +1271,9 @@ fn play<'a>(
     let mut setup_s = 0.0;
     let mut sim_s = 0.0;
     for r in 0..spec.rounds {
+        if runner.budget_spent() {
+            break;
+        }
         let (record, setup) = runner.round(r)?;
         setup_s += setup;
         sim_s += record.sim_time_s;
@@ -1103,6 +1281,14 @@ fn play<'a>(
         runner.rounds_done = r + 1;
         runner.progress();
     }
+    let recognition = runner.recognizer.as_deref().map(|r| RecognitionRun {
+        encoder: ENCODER.to_string(),
+        start_model: r.origin().to_string(),
+        config: r.config().clone(),
+        labels: r.labels().clone(),
+        memory: runner.memory.clone(),
+    });
+    let replay_s = runner.replay_s;
     let attempts = runner.attempts;
     let n_attempts = attempts.len();
     let summary = summarize(&attempts, &rounds);
@@ -1117,7 +1303,7 @@ fn play<'a>(
             scenario: spec.scenario,
             grasp_source: runner.source.name().to_string(),
             grasp_source_detail: runner.source.describe(),
-            rounds: spec.rounds,
+            rounds: rounds.len(),
             seed: spec.seed,
             objects: spec.objects.clone(),
             library_size: library.len(),
@@ -1126,12 +1312,14 @@ fn play<'a>(
         attempts,
         rounds,
         config: spec.config.clone(),
+        recognition,
         wall: RunWall {
             total_s,
             setup_s,
             attempts: attempt_wall,
             per_attempt_s: attempt_wall.total_s / n_attempts.max(1) as f64,
             real_time_factor: if total_s > 0.0 { sim_s / total_s } else { 0.0 },
+            replay_s,
         },
     })
 }
@@ -1174,6 +1362,33 @@ fn attempt_caption(a: &AttemptRecord) -> String {
     )
 }
 
+/// A recording's line about a recognition: `mug_01 (mug): guessed teapot/teapot_02 at 40 %,
+/// teacher: mug/mug_01 (10 views)`.
+fn recognition_caption(r: &RecognitionRecord) -> String {
+    let g = &r.guess;
+    let guess = match (&g.category, &g.instance) {
+        (Some(c), i) => format!(
+            "guessed {c}/{} at {:.0} %{}",
+            i.as_deref().unwrap_or("?"),
+            100.0 * g.confidence,
+            if g.known { "" } else { " (I don't know this)" }
+        ),
+        (None, _) => "I don't know this".to_string(),
+    };
+    let teacher = if r.teacher {
+        format!(
+            ", teacher: {}/{} ({} views learnt)",
+            r.true_category, r.true_instance, r.taught_views
+        )
+    } else {
+        ", right".to_string()
+    };
+    format!(
+        "recognition of {} ({}): {guess}{teacher}",
+        r.true_instance, r.true_category
+    )
+}
+
 /// How a round ended, for its recording: `cleared, placed 1 of 1`.
 fn round_summary(r: &RoundRecord) -> String {
     let ended = serde_json::to_value(r.ended_by)
@@ -1192,6 +1407,14 @@ fn round_summary(r: &RoundRecord) -> String {
     text
 }
 
+/// The model a pick-and-place run learnt, as a dual-memory checkpoint (`lgdm eval --model`,
+/// `lgdm.GDM.load`, `--model` of another run).
+pub const MODEL_FILE: &str = "model.lgdm";
+
+/// Beside [`MODEL_FILE`]: its encoder and label names (`{"encoder", "categories",
+/// "instances"}`, the fields of `lgdm train`'s `metrics.json` that say what the ids mean).
+pub const MODEL_LABELS_FILE: &str = "model.json";
+
 /// The folder of a run directory that holds the recorded rounds.
 pub const ROUNDS_DIR: &str = "rounds";
 
@@ -1205,7 +1428,7 @@ fn is_round_entry(name: &str) -> bool {
 fn is_run_entry(name: &str) -> bool {
     matches!(
         name,
-        RESULTS_FILE | "summary.txt" | lgdm_pointcloud::LOCK_FILE
+        RESULTS_FILE | "summary.txt" | MODEL_FILE | MODEL_LABELS_FILE | lgdm_pointcloud::LOCK_FILE
     ) || name.ends_with(".png")
         || (name.starts_with('.') && name.ends_with(".tmp"))
 }

@@ -20,19 +20,23 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
+use lgdm_gdm::Gdm;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::objects::{CATEGORIES, ObjectModel, procedural_library};
 use lgdm_sim::camera::ObjectDrawing;
+use lgdm_sim::recognize::{
+    ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionRecord, Recognizer,
+};
 use lgdm_sim::record::RecordConfig;
 use lgdm_sim::run::{
-    ROUNDS_DIR, RunProgress, RunResults, RunSpec, SimRunDir, builtin_source, run_trials,
-    run_trials_recorded,
+    MODEL_FILE, MODEL_LABELS_FILE, ROUNDS_DIR, RunProgress, RunResults, RunSpec, SimRunDir,
+    builtin_source, run_pick_place, run_trials, run_trials_recorded,
 };
-use lgdm_sim::scenario::{Scenario, check_library};
+use lgdm_sim::scenario::{Scenario, check_library, interleaved_order};
 use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::GraspSource;
 
-use crate::plot::{Bar, write_bar_chart};
+use crate::plot::{Bar, write_bar_chart, write_lines};
 use crate::progress::{ProgressMode, Reporter};
 
 /// Arguments of `lgdm sim`.
@@ -48,6 +52,10 @@ pub struct Args {
 pub enum SimCommand {
     /// Grasp trials: rounds of a scenario with one grasp source → results.json, summary, plots.
     Grasp(GraspArgs),
+    /// The paper's pick-and-place: recognise each object with the dual memory (a simulated
+    /// teacher labels what the robot does not know or gets wrong; it learns on the spot, replay
+    /// after each round), grasp it, place it in the left basket.
+    PickPlace(PickPlaceArgs),
 }
 
 /// The scenarios (`--scenario`).
@@ -101,21 +109,13 @@ pub enum ShapesArg {
     Decomposition,
 }
 
-/// Arguments of `lgdm sim grasp`.
+/// What every robot run takes: the grasp source, the objects, the physics and cameras, the
+/// output, recording and progress.
 #[derive(Debug, ClapArgs)]
-pub struct GraspArgs {
-    /// How the table is set.
-    #[arg(long, value_enum, default_value_t = ScenarioArg::Isolated)]
-    pub scenario: ScenarioArg,
+pub struct RobotArgs {
     /// Where grasps come from.
     #[arg(long, value_enum, default_value_t = GraspArg::Analytic)]
     pub grasp: GraspArg,
-    /// Rounds to play (isolated: one object each; packed and pile: 5 objects each).
-    #[arg(long, default_value_t = 10)]
-    pub rounds: usize,
-    /// Base seed: object poses, clutter draws, the random source and the procedural instances.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
     /// Run directory, new or empty: results.json, summary.txt, plots.
     #[arg(long)]
     pub out: PathBuf,
@@ -129,9 +129,6 @@ pub struct GraspArgs {
     /// (as `gen-dataset --units`); guessed from the size when not given.
     #[arg(long, value_name = "[FILE=]UNIT", requires = "meshes")]
     pub units: Vec<String>,
-    /// Procedural instances per category (default 5: 50 objects).
-    #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
-    pub instances: usize,
     /// What the cameras draw for an object.
     #[arg(long, value_enum, default_value_t = DrawArg::Collider)]
     pub draw: DrawArg,
@@ -154,10 +151,69 @@ pub struct GraspArgs {
     pub ae_checkpoint: Option<PathBuf>,
 }
 
+/// Arguments of `lgdm sim grasp`.
+#[derive(Debug, ClapArgs)]
+pub struct GraspArgs {
+    /// How the table is set.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::Isolated)]
+    pub scenario: ScenarioArg,
+    /// Rounds to play (isolated: one object each; packed and pile: 5 objects each).
+    #[arg(long, default_value_t = 10)]
+    pub rounds: usize,
+    /// Base seed: object poses, clutter draws, the random source and the procedural instances.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Procedural instances per category (default 5: 50 objects).
+    #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
+    pub instances: usize,
+    /// Source, objects, output, recording.
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// Arguments of `lgdm sim pick-place`.
+#[derive(Debug, ClapArgs)]
+pub struct PickPlaceArgs {
+    /// How the table is set: packed (5 objects pushed together, default) or pile.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::Packed)]
+    pub scenario: ScenarioArg,
+    /// Rounds to play (5 objects each; default 10 when --attempts is not given either).
+    #[arg(long)]
+    pub rounds: Option<usize>,
+    /// Stop after this many grasp attempts (750 gives the paper's shape).
+    #[arg(long)]
+    pub attempts: Option<usize>,
+    /// Base seed: object poses, the rounds' draws, the random source, the views.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The object set: the first N objects taken category by category in turn (the first
+    /// instance of every category, then the second, …; 15: the paper's set).
+    #[arg(long, default_value_t = 15)]
+    pub objects: usize,
+    /// Seed of the procedural instances (default 0: the embedded dataset's and `gen-dataset`'s
+    /// default, so a model trained on it knows these objects).
+    #[arg(long, default_value_t = 0, conflicts_with = "meshes")]
+    pub object_seed: u64,
+    /// Start from this model (`lgdm train`'s model-trial<t>.lgdm, or a pick-place run's
+    /// model.lgdm) instead of an empty one; its label names come from the run record beside it.
+    #[arg(long, value_name = "CKPT")]
+    pub model: Option<PathBuf>,
+    /// No intrinsic replay after each round.
+    #[arg(long)]
+    pub no_replay: bool,
+    /// Below this share of agreeing views the robot says "I don't know this" (0..=1).
+    #[arg(long, default_value_t = 0.6)]
+    pub confidence: f64,
+    /// Source, objects, output, recording.
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
 /// Runs `lgdm sim`.
 pub fn run(args: Args) -> Result<()> {
     match args.command {
         SimCommand::Grasp(args) => grasp(args),
+        SimCommand::PickPlace(args) => pick_place(args),
     }
 }
 
@@ -171,7 +227,7 @@ and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && 
 LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
 
 /// The grasp source of `args`, loaded once for the whole run.
-fn source(args: &GraspArgs, reporter: &Reporter) -> Result<Box<dyn GraspSource>> {
+fn source(args: &RobotArgs, seed: u64, reporter: &Reporter) -> Result<Box<dyn GraspSource>> {
     if let (Some(p), false) = (&args.ae_checkpoint, args.grasp == GraspArg::Network) {
         bail!(
             "--ae-checkpoint {} only applies to --grasp network",
@@ -179,8 +235,8 @@ fn source(args: &GraspArgs, reporter: &Reporter) -> Result<Box<dyn GraspSource>>
         );
     }
     match args.grasp {
-        GraspArg::Analytic => Ok(builtin_source("analytic", args.seed)?),
-        GraspArg::Random => Ok(builtin_source("random", args.seed)?),
+        GraspArg::Analytic => Ok(builtin_source("analytic", seed)?),
+        GraspArg::Random => Ok(builtin_source("random", seed)?),
         GraspArg::Network => network_source(args.ae_checkpoint.as_deref(), reporter),
     }
 }
@@ -210,13 +266,18 @@ fn network_source(
 }
 
 /// The object library: the procedural objects or the meshes of `--meshes`.
-fn library(args: &GraspArgs, reporter: &Reporter) -> Result<(Vec<ObjectModel>, String)> {
+fn library(
+    args: &RobotArgs,
+    instances: usize,
+    seed: u64,
+    reporter: &Reporter,
+) -> Result<(Vec<ObjectModel>, String)> {
     match &args.meshes {
         None => {
-            if args.instances == 0 {
+            if instances == 0 {
                 bail!("--instances 0: at least one instance per category is needed");
             }
-            let objects = procedural_library(&CATEGORIES, args.instances, args.seed)?;
+            let objects = procedural_library(&CATEGORIES, instances, seed)?;
             Ok((objects, "procedural".into()))
         }
         Some(dir) => {
@@ -245,29 +306,24 @@ fn library(args: &GraspArgs, reporter: &Reporter) -> Result<(Vec<ObjectModel>, S
 }
 
 fn grasp(args: GraspArgs) -> Result<()> {
-    let reporter = Reporter::new(args.progress);
+    let reporter = Reporter::new(args.robot.progress);
     if args.rounds == 0 {
         bail!("--rounds 0: at least one round is needed");
     }
-    let mut source = source(&args, &reporter)?;
-    let (objects, objects_label) = library(&args, &reporter)?;
-    let mut spec = RunSpec::new(args.scenario.into(), args.rounds, args.seed);
-    spec.objects = objects_label;
-    spec.config.cameras.draw = match args.draw {
-        DrawArg::Mesh => ObjectDrawing::Mesh,
-        DrawArg::Collider => ObjectDrawing::Collider,
-    };
-    spec.config.shapes.shape = match args.shapes {
-        ShapesArg::Hull => ObjectShape::Hull,
-        ShapesArg::Decomposition => ObjectShape::Decomposition,
-    };
+    let robot = &args.robot;
+    let mut source = source(robot, args.seed, &reporter)?;
+    let (objects, objects_label) = library(robot, args.instances, args.seed, &reporter)?;
+    let spec = run_spec(
+        robot,
+        args.scenario.into(),
+        args.rounds,
+        args.seed,
+        objects_label,
+    );
     // Every object must be simulable before the run directory is touched.
     check_library(&spec.config.world, &objects).context("the object library")?;
-    let record = (args.record || args.record_rounds.is_some()).then(|| RecordConfig {
-        first_rounds: args.record_rounds,
-        ..RecordConfig::default()
-    });
-    let mut run_dir = SimRunDir::create(&args.out, args.force)?;
+    let record = record_config(robot);
+    let mut run_dir = SimRunDir::create(&robot.out, robot.force)?;
     let started = Instant::now();
     let mut task = reporter.bar("sim grasp", args.rounds as u64);
     let progress = |p: &RunProgress| {
@@ -293,7 +349,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
     let s = &results.summary;
     reporter.event(&serde_json::json!({
         "event": "done",
-        "out": args.out.display().to_string(),
+        "out": robot.out.display().to_string(),
         "attempts": s.attempts,
         "grasp_success_rate": s.grasp_success_rate.value,
         "placement_success_rate": s.placement_success_rate.value,
@@ -301,17 +357,47 @@ fn grasp(args: GraspArgs) -> Result<()> {
         "contact_only_success_rate": s.contact_only_success_rate.value,
         "seconds": started.elapsed().as_secs_f64(),
     }));
-    if args.progress != ProgressMode::Jsonl {
+    if robot.progress != ProgressMode::Jsonl {
         println!("{table}");
         if record.is_some() {
             println!(
                 "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
-                args.out.join(ROUNDS_DIR).display()
+                robot.out.join(ROUNDS_DIR).display()
             );
         }
-        println!("wrote {}", args.out.display());
+        println!("wrote {}", robot.out.display());
     }
     Ok(())
+}
+
+/// The run spec both commands share: the scenario, rounds and seed, the cameras' drawing and
+/// the colliders of `args`.
+fn run_spec(
+    args: &RobotArgs,
+    scenario: Scenario,
+    rounds: usize,
+    seed: u64,
+    objects: String,
+) -> RunSpec {
+    let mut spec = RunSpec::new(scenario, rounds, seed);
+    spec.objects = objects;
+    spec.config.cameras.draw = match args.draw {
+        DrawArg::Mesh => ObjectDrawing::Mesh,
+        DrawArg::Collider => ObjectDrawing::Collider,
+    };
+    spec.config.shapes.shape = match args.shapes {
+        ShapesArg::Hull => ObjectShape::Hull,
+        ShapesArg::Decomposition => ObjectShape::Decomposition,
+    };
+    spec
+}
+
+/// `--record` / `--record-rounds`.
+fn record_config(args: &RobotArgs) -> Option<RecordConfig> {
+    (args.record || args.record_rounds.is_some()).then(|| RecordConfig {
+        first_rounds: args.record_rounds,
+        ..RecordConfig::default()
+    })
 }
 
 /// The terminal summary: rates with Wilson intervals, per category, failure reasons, where the
@@ -438,5 +524,333 @@ fn write_plots(dir: &SimRunDir, r: &RunResults) -> Result<()> {
         &bars,
         top,
     )?;
+    Ok(())
+}
+
+/// What a model's ids mean and which encoder made its features: the fields of `lgdm train`'s
+/// `metrics.json` (or a pick-place run's `model.json`) beside the checkpoint.
+#[derive(Debug, serde::Deserialize, serde::Serialize)]
+struct ModelRecord {
+    encoder: String,
+    categories: Vec<String>,
+    #[serde(default)]
+    instances: Vec<String>,
+}
+
+/// The record beside `model`: `metrics.json` (`lgdm train`) or `model.json` (pick-place).
+fn model_record(model: &std::path::Path) -> Result<Option<(PathBuf, ModelRecord)>> {
+    let dir = model.parent().unwrap_or(std::path::Path::new("."));
+    for name in [
+        lgdm_gdm::experiment::run_dir::METRICS_FILE,
+        MODEL_LABELS_FILE,
+    ] {
+        let path = dir.join(name);
+        if let Ok(text) = std::fs::read_to_string(&path) {
+            let record: ModelRecord = serde_json::from_str(&text).with_context(|| {
+                format!(
+                    "reading the model's record {} (encoder and label names)",
+                    path.display()
+                )
+            })?;
+            return Ok(Some((path, record)));
+        }
+    }
+    Ok(None)
+}
+
+/// The recognizer: `--model` (checked: its feature dimension and encoder against GOOD's) with
+/// the label names of its run, else an empty model with the dataset's ids of `library`.
+fn recognizer(
+    args: &PickPlaceArgs,
+    library: &[ObjectModel],
+    reporter: &Reporter,
+) -> Result<Recognizer> {
+    if !(0.0..=1.0).contains(&args.confidence) {
+        bail!("--confidence {}: must be in 0..=1", args.confidence);
+    }
+    let config = RecognitionConfig {
+        replay: !args.no_replay,
+        confidence_threshold: args.confidence,
+        ..RecognitionConfig::default()
+    };
+    let Some(model) = &args.model else {
+        return Ok(Recognizer::empty(
+            config,
+            Labels::of_objects(library),
+            args.seed,
+        )?);
+    };
+    let gdm = Gdm::load(model).with_context(|| format!("--model {}", model.display()))?;
+    let labels = match model_record(model)? {
+        Some((path, record)) => {
+            if record.encoder != ENCODER {
+                bail!(
+                    "--model {}: the model was trained with the `{}` encoder ({}), pick-place \
+                     recognises with `{ENCODER}`: train a model on GOOD features",
+                    model.display(),
+                    record.encoder,
+                    path.display()
+                );
+            }
+            Labels {
+                categories: record.categories,
+                instances: record.instances,
+            }
+        }
+        None => {
+            reporter.message(&format!(
+                "note: no run record (metrics.json or model.json) beside {}: its encoder \
+                 cannot be checked and its ids are taken as the dataset ids of the object library",
+                model.display()
+            ));
+            Labels::of_objects(library)
+        }
+    };
+    let recognizer = Recognizer::new(config, gdm, labels, args.seed).map_err(|e| {
+        anyhow::anyhow!(
+            "--model {}: {e} (pick-place recognises with GOOD)",
+            model.display()
+        )
+    })?;
+    Ok(recognizer.with_origin(model.display().to_string()))
+}
+
+fn pick_place(args: PickPlaceArgs) -> Result<()> {
+    let robot = &args.robot;
+    let reporter = Reporter::new(robot.progress);
+    if args.rounds == Some(0) {
+        bail!("--rounds 0: at least one round is needed");
+    }
+    if args.attempts == Some(0) {
+        bail!("--attempts 0: at least one attempt is needed");
+    }
+    if args.objects == 0 {
+        bail!("--objects 0: the object set needs at least one object");
+    }
+    let scenario: Scenario = args.scenario.into();
+    if scenario == Scenario::Isolated {
+        bail!("--scenario isolated: pick-place sets 5 objects per round; use packed or pile");
+    }
+    let mut source = source(robot, args.seed, &reporter)?;
+    let (library, objects_label) = library(robot, 5, args.object_seed, &reporter)?;
+    let mut recognizer = recognizer(&args, &library, &reporter)?;
+    let set: Vec<ObjectModel> = interleaved_order(&library)
+        .into_iter()
+        .take(args.objects)
+        .map(|i| library[i].clone())
+        .collect();
+    if set.len() < args.objects {
+        reporter.message(&format!(
+            "note: --objects {}: the library holds {} objects; using them all",
+            args.objects,
+            set.len()
+        ));
+    }
+    // With only --attempts, every round has at least one attempt: that many rounds suffice.
+    let rounds = args.rounds.or(args.attempts).unwrap_or(10);
+    let label = format!(
+        "{objects_label}, {} objects: {}",
+        set.len(),
+        set.iter()
+            .map(|o| o.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let mut spec = run_spec(robot, scenario, rounds, args.seed, label);
+    spec.max_attempts = args.attempts;
+    check_library(&spec.config.world, &set).context("the object library")?;
+    let record = record_config(robot);
+    let mut run_dir = SimRunDir::create(&robot.out, robot.force)?;
+    let started = Instant::now();
+    let (total, unit) = match args.attempts {
+        Some(n) => (n as u64, "attempts"),
+        None => (rounds as u64, "rounds"),
+    };
+    let mut task = reporter.bar("sim pick-place", total);
+    let progress = |p: &RunProgress| {
+        let done = if args.attempts.is_some() {
+            p.attempts
+        } else {
+            p.rounds_done
+        };
+        task.update_coarse(unit, done as u64, total);
+    };
+    let results = run_pick_place(
+        &spec,
+        &set,
+        source.as_mut(),
+        &mut recognizer,
+        progress,
+        record
+            .as_ref()
+            .map(|c| (c, &mut run_dir as &mut dyn lgdm_sim::record::RoundSink)),
+    );
+    task.finish();
+    let results = results.context("running pick-and-place")?;
+    run_dir.write_results(&results)?;
+    let (gdm, labels) = recognizer.into_parts();
+    gdm.save(&run_dir.path().join(MODEL_FILE))
+        .context("saving the model")?;
+    let model_record = ModelRecord {
+        encoder: ENCODER.to_string(),
+        categories: labels.categories,
+        instances: labels.instances,
+    };
+    run_dir.write_file(
+        MODEL_LABELS_FILE,
+        (serde_json::to_string_pretty(&model_record)? + "\n").as_bytes(),
+    )?;
+    let table = pick_place_table(&results);
+    run_dir.write_file("summary.txt", table.as_bytes())?;
+    write_plots(&run_dir, &results).context("drawing the plots")?;
+    write_learning_plots(&run_dir, &results).context("drawing the learning curve")?;
+    let s = &results.summary;
+    reporter.event(&serde_json::json!({
+        "event": "done",
+        "out": robot.out.display().to_string(),
+        "attempts": s.attempts,
+        "recognition_accuracy": s.recognition_accuracy.and_then(|r| r.value),
+        "teacher_interventions": s.teacher_interventions,
+        "grasp_success_rate": s.grasp_success_rate.value,
+        "placement_success_rate": s.placement_success_rate.value,
+        "cleared_fraction": s.cleared_fraction.value,
+        "seconds": started.elapsed().as_secs_f64(),
+    }));
+    if robot.progress != ProgressMode::Jsonl {
+        println!("{table}");
+        if record.is_some() {
+            println!(
+                "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
+                robot.out.join(ROUNDS_DIR).display()
+            );
+        }
+        println!("wrote {}", robot.out.display());
+    }
+    Ok(())
+}
+
+/// The pick-and-place summary: recognition and teacher first, then the grasp run's table.
+pub fn pick_place_table(r: &RunResults) -> String {
+    use std::fmt::Write;
+    let s = &r.summary;
+    let mut out = String::new();
+    if let Some(rec) = &r.recognition {
+        let _ = writeln!(
+            out,
+            "sim pick-place: {} encoder, start model {}, replay {}",
+            rec.encoder,
+            rec.start_model,
+            if rec.config.replay { "on" } else { "off" }
+        );
+        let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
+        for (name, rate) in [
+            ("recognition (category)", &s.recognition_accuracy),
+            ("recognition (instance)", &s.instance_recognition_accuracy),
+            ("teacher interventions", &s.teacher_intervention_rate),
+        ] {
+            if let Some(rate) = rate {
+                let _ = writeln!(out, "{name:<28} {}", rate.describe());
+            }
+        }
+        if let (Some(first), Some(last)) = (rec.memory.first(), rec.memory.last()) {
+            let _ = writeln!(
+                out,
+                "nodes G-EM / G-SM            {} / {} at the start, {} / {} after {} rounds ({} lessons)",
+                first.episodic_nodes,
+                first.semantic_nodes,
+                last.episodic_nodes,
+                last.semantic_nodes,
+                last.rounds,
+                last.lessons
+            );
+        }
+        let _ = writeln!(
+            out,
+            "replay at the rounds' ends {:.1} s, recognition {:.1} s\n",
+            r.wall.replay_s, r.wall.attempts.recognition_s
+        );
+    }
+    // The grasp table's first line names the command that made it.
+    let grasp = summary_table(r);
+    out.push_str(&grasp.replacen("sim grasp:", "grasp and placement:", 1));
+    out
+}
+
+/// `learning_curve.png` (first-guess accuracy and teacher interventions against objects seen,
+/// over the last 25 recognitions and over all so far) and `nodes.png` (both memories' nodes
+/// after each round).
+fn write_learning_plots(dir: &SimRunDir, r: &RunResults) -> Result<()> {
+    const WINDOW: usize = 25;
+    let looks: Vec<&RecognitionRecord> = r
+        .attempts
+        .iter()
+        .filter_map(|a| a.recognition.as_ref())
+        .filter(|x| x.first_look)
+        .collect();
+    let windowed = |f: fn(&RecognitionRecord) -> bool| -> Vec<(f64, f64)> {
+        (0..looks.len())
+            .map(|i| {
+                let from = (i + 1).saturating_sub(WINDOW);
+                let part = &looks[from..=i];
+                let k = part.iter().filter(|x| f(x)).count();
+                ((i + 1) as f64, k as f64 / part.len() as f64)
+            })
+            .collect()
+    };
+    let cumulative = |f: fn(&RecognitionRecord) -> bool| -> Vec<(f64, f64)> {
+        let mut k = 0;
+        looks
+            .iter()
+            .enumerate()
+            .map(|(i, x)| {
+                k += usize::from(f(x));
+                ((i + 1) as f64, k as f64 / (i + 1) as f64)
+            })
+            .collect()
+    };
+    write_lines(
+        &dir.path().join("learning_curve.png"),
+        "Recognition in the loop: first guess and teacher",
+        "objects seen",
+        "share",
+        &[
+            (
+                format!("first-guess category accuracy (last {WINDOW})"),
+                windowed(|x| x.category_correct),
+            ),
+            (
+                format!("teacher interventions (last {WINDOW})"),
+                windowed(|x| x.teacher),
+            ),
+            (
+                "first-guess category accuracy (all so far)".into(),
+                cumulative(|x| x.category_correct),
+            ),
+            (
+                "teacher interventions (all so far)".into(),
+                cumulative(|x| x.teacher),
+            ),
+        ],
+        true,
+    )?;
+    if let Some(rec) = &r.recognition {
+        let nodes = |f: fn(&MemoryPoint) -> usize| -> Vec<(f64, f64)> {
+            rec.memory
+                .iter()
+                .map(|m| (m.objects_seen as f64, f(m) as f64))
+                .collect()
+        };
+        write_lines(
+            &dir.path().join("nodes.png"),
+            "Nodes of the dual memory (after each round)",
+            "objects seen",
+            "nodes",
+            &[
+                ("G-EM".into(), nodes(|m| m.episodic_nodes)),
+                ("G-SM".into(), nodes(|m| m.semantic_nodes)),
+            ],
+            false,
+        )?;
+    }
     Ok(())
 }

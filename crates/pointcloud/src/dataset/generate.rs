@@ -20,7 +20,7 @@ use crate::import::ImportReport;
 use crate::math::{Pose, derive_seed, rotation_z, translation};
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, procedural_library, rest_on_table};
-use crate::render::{Camera, RenderItem, render};
+use crate::render::{Camera, RenderItem, RgbdFrame, render};
 
 /// Seed stream tags (keep stable: they define the dataset bytes).
 const TAG_SEQUENCE: u64 = 0x5E0;
@@ -54,26 +54,65 @@ pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
             })
             .unzip(),
     };
-    let mut categories: Vec<String> = Vec::new();
-    for o in &objects {
-        if !categories.contains(&o.category) {
-            categories.push(o.category.clone());
-        }
-    }
+    let (categories, category_ids) = label_ids(&objects);
     let instances = objects
         .iter()
         .zip(sources)
-        .map(|(o, (source, import))| InstanceInfo {
+        .zip(category_ids)
+        .map(|((o, (source, import)), category)| InstanceInfo {
             name: o.name.clone(),
-            category: categories
-                .iter()
-                .position(|c| *c == o.category)
-                .expect("collected above") as u32,
+            category,
             source,
             import,
         })
         .collect();
     Ok((objects, categories, instances))
+}
+
+/// The labels a dataset gives `objects` — the one home of the name ↔ id mapping: category ids
+/// number the category names in order of first appearance, instance ids are indices into
+/// `objects`. Returns the category names in id order and each object's category id.
+///
+/// ```
+/// use lgdm_pointcloud::dataset::label_ids;
+/// use lgdm_pointcloud::objects::procedural_library;
+/// let objects = procedural_library(&["can", "mug"], 2, 0).unwrap();
+/// let (categories, ids) = label_ids(&objects);
+/// assert_eq!(categories, ["can", "mug"]);
+/// assert_eq!(ids, [0, 0, 1, 1]);
+/// ```
+pub fn label_ids(objects: &[ObjectModel]) -> (Vec<String>, Vec<u32>) {
+    let mut categories: Vec<String> = Vec::new();
+    for o in objects {
+        if !categories.contains(&o.category) {
+            categories.push(o.category.clone());
+        }
+    }
+    let ids = objects
+        .iter()
+        .map(|o| {
+            categories
+                .iter()
+                .position(|c| *c == o.category)
+                .expect("collected above") as u32
+        })
+        .collect();
+    (categories, ids)
+}
+
+/// One view as a dataset stores it: the pixels of `label` in `frame` back-projected into the
+/// optical frame of `camera` (metres), uniformly subsampled to at most `max_points` with `rng`.
+/// Datasets call it for every turntable frame (before the collection's augmentation), and the
+/// robot for its views of an object on the table, so both describe a view alike.
+pub fn view_cloud(
+    frame: &RgbdFrame,
+    camera: &Camera,
+    label: u8,
+    max_points: usize,
+    rng: &mut ChaCha8Rng,
+) -> PointCloud {
+    let cloud = frame.backproject(camera, label);
+    subsample(&cloud, max_points, rng)
 }
 
 /// Checks that `out` can receive a dataset: it does not exist, is empty, already holds an
@@ -451,8 +490,13 @@ pub(crate) fn render_sequence(
                 label: OBJECT_LABEL,
             }],
         );
-        let cloud = frame.backproject(camera, OBJECT_LABEL);
-        let cloud = subsample(&cloud, spec.max_points_per_view, &mut rng);
+        let cloud = view_cloud(
+            &frame,
+            camera,
+            OBJECT_LABEL,
+            spec.max_points_per_view,
+            &mut rng,
+        );
         let cloud = augmentation.apply_to_cloud(&cloud, &mut rng);
         sink(f as u32, cloud);
     }

@@ -38,7 +38,9 @@ use crate::augment::Augmentation;
 pub use crate::cloud::PointCloud;
 pub use crate::progress::Progress;
 use crate::render::Camera;
-pub use generate::{LoadedObjects, check_output_dir, generate, load_objects, render_views};
+pub use generate::{
+    LoadedObjects, check_output_dir, generate, label_ids, load_objects, render_views, view_cloud,
+};
 pub use mcap_io::{
     POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud, foxglove_pose,
     foxglove_schema, foxglove_timestamp, point_cloud_schema,

@@ -79,15 +79,26 @@ impl Default for CameraSpec {
 impl CameraSpec {
     /// The camera this spec describes, world frame z up with the turntable axis on z.
     pub fn camera(&self) -> Camera {
+        self.camera_around([0.0; 3], 0.0)
+    }
+
+    /// The same camera around an axis standing at `base_m` (z up; the turntable's centre is
+    /// the origin), turned by `azimuth_rad` about it: 0 looks along +y (the dataset's
+    /// camera), π/2 along −x. Seeing an object from azimuths a, a + Δ, … is the turntable
+    /// sequence of the object turned by −a, −a − Δ, …; the robot orbits it instead of turning it.
+    pub fn camera_around(&self, base_m: [f32; 3], azimuth_rad: f32) -> Camera {
         let (s, c) = self.elevation_rad.sin_cos();
+        let (sa, ca) = azimuth_rad.sin_cos();
+        let horizontal = self.distance_m * c;
+        let target = [base_m[0], base_m[1], base_m[2] + self.target_height_m];
         let eye = [
-            0.0,
-            -self.distance_m * c,
-            self.target_height_m + self.distance_m * s,
+            target[0] + horizontal * sa,
+            target[1] - horizontal * ca,
+            base_m[2] + self.target_height_m + self.distance_m * s,
         ];
         Camera::new(
             Intrinsics::centered(self.width, self.height, self.focal_px),
-            look_at(eye, [0.0, 0.0, self.target_height_m], [0.0, 0.0, 1.0]),
+            look_at(eye, target, [0.0, 0.0, 1.0]),
         )
     }
 }
