@@ -250,9 +250,9 @@ fn another_seed_gives_other_results() {
 }
 
 #[test]
-fn packed_and_pile_rounds_write_results() {
+fn packed_pile_and_scattered_rounds_write_results() {
     let dir = work_dir();
-    for scenario in ["packed", "pile"] {
+    for scenario in ["packed", "pile", "scattered"] {
         let out = dir.join(scenario);
         check(
             sim(

@@ -938,7 +938,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let mut left_table = Vec::new();
         let ended_by = match scenario {
             Scenario::Isolated => self.isolated(&mut cell, round, &objects, &mut placed)?,
-            Scenario::Packed | Scenario::Pile => {
+            Scenario::Packed | Scenario::Pile | Scenario::Scattered => {
                 self.clutter(&mut cell, round, &objects, &mut placed, &mut left_table)?
             }
         };

@@ -11,6 +11,11 @@
 //!   the centre in [`ScenarioConfig::packed_step_m`] steps from
 //!   [`ScenarioConfig::packed_start_m`] until its hull touches one already placed, then backed
 //!   off one step (the reference's `create_packed`); all with uniform yaws, then settled.
+//! - [`Scenario::Scattered`]: the same number of objects placed upright at uniform yaws and
+//!   uniform positions within ± [`ScenarioConfig::scattered_half_extent_m`] of the centre, each
+//!   at least [`ScenarioConfig::scattered_clearance_m`] from the others (a finger's room; up to
+//!   [`ScenarioConfig::scattered_tries`] draws, then the one farthest from the others), then
+//!   settled: the paper's pick-and-place and packing tables ("randomly placed").
 //! - [`Scenario::Pile`]: the same number of objects dropped one after another with uniform
 //!   orientations within ± [`ScenarioConfig::pile_spread_m`] of the centre, each released
 //!   [`ScenarioConfig::pile_drop_gap_m`] above the pile so far and settled, inside a temporary
@@ -43,7 +48,7 @@ use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
-use rapier3d::parry::query::intersection_test;
+use rapier3d::parry::query::{distance, intersection_test};
 use serde::{Deserialize, Serialize};
 
 use crate::shapes::LibraryShapes;
@@ -59,11 +64,13 @@ pub enum Scenario {
     Packed,
     /// Objects dropped in a heap.
     Pile,
+    /// Objects placed apart at random.
+    Scattered,
 }
 
 impl Scenario {
     /// Every scenario.
-    pub const ALL: [Scenario; 3] = [Self::Isolated, Self::Packed, Self::Pile];
+    pub const ALL: [Scenario; 4] = [Self::Isolated, Self::Packed, Self::Pile, Self::Scattered];
 
     /// The name as the cli spells it.
     pub fn as_str(self) -> &'static str {
@@ -71,6 +78,7 @@ impl Scenario {
             Self::Isolated => "isolated",
             Self::Packed => "packed",
             Self::Pile => "pile",
+            Self::Scattered => "scattered",
         }
     }
 }
@@ -83,7 +91,7 @@ impl std::fmt::Display for Scenario {
 
 /// An unknown scenario name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown scenario `{0}` (known: isolated, packed, pile)")]
+#[error("unknown scenario `{0}` (known: isolated, packed, pile, scattered)")]
 pub struct UnknownScenario(pub String);
 
 impl std::str::FromStr for Scenario {
@@ -130,6 +138,15 @@ pub struct ScenarioConfig {
     pub pile_drop_gap_m: f32,
     /// Most attempts in one round (default 20).
     pub max_attempts_per_round: usize,
+    /// Half extent of the square scattered objects are placed in (m; default 0.18: the arm
+    /// reaches (0.05, −0.52) ± 0.20 m top-down, and the overview camera sees ± 0.40 m).
+    pub scattered_half_extent_m: f32,
+    /// Least distance between scattered objects' colliders (m; default 0.04: a finger and its
+    /// clearance fit between them, and segmentation keeps them apart).
+    pub scattered_clearance_m: f32,
+    /// Position draws per scattered object before taking the one farthest from the others
+    /// (default 50).
+    pub scattered_tries: usize,
 }
 
 impl Default for ScenarioConfig {
@@ -147,6 +164,9 @@ impl Default for ScenarioConfig {
             pile_box_height_m: 0.15,
             pile_drop_gap_m: 0.02,
             max_attempts_per_round: 20,
+            scattered_half_extent_m: 0.18,
+            scattered_clearance_m: 0.04,
+            scattered_tries: 50,
         }
     }
 }
@@ -165,6 +185,7 @@ impl ScenarioConfig {
             ("max_consecutive_failures", self.max_consecutive_failures),
             ("clutter_objects", self.clutter_objects),
             ("max_attempts_per_round", self.max_attempts_per_round),
+            ("scattered_tries", self.scattered_tries),
         ] {
             if v == 0 {
                 return bad(field, "must be at least 1".into());
@@ -178,6 +199,8 @@ impl ScenarioConfig {
             ("pile_box_m[1]", self.pile_box_m[1]),
             ("pile_box_height_m", self.pile_box_height_m),
             ("pile_drop_gap_m", self.pile_drop_gap_m),
+            ("scattered_half_extent_m", self.scattered_half_extent_m),
+            ("scattered_clearance_m", self.scattered_clearance_m),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(field, format!("{v} must be positive and finite"));
@@ -193,7 +216,7 @@ impl ScenarioConfig {
     pub fn objects_per_round(&self, scenario: Scenario) -> usize {
         match scenario {
             Scenario::Isolated => 1,
-            Scenario::Packed | Scenario::Pile => self.clutter_objects,
+            Scenario::Packed | Scenario::Pile | Scenario::Scattered => self.clutter_objects,
         }
     }
 }
@@ -231,7 +254,7 @@ pub fn round_objects<R: Rng + ?Sized>(
             let order = interleaved_order(library);
             vec![order[round % order.len()]]
         }
-        Scenario::Packed | Scenario::Pile => {
+        Scenario::Packed | Scenario::Pile | Scenario::Scattered => {
             let mut pool: Vec<usize> = (0..library.len()).collect();
             let mut out = Vec::with_capacity(config.clutter_objects);
             for _ in 0..config.clutter_objects {
@@ -296,6 +319,24 @@ fn hulls_intersect(
         what: "packed placement".into(),
     })?;
     Ok(intersection_test(&pa, ca.shape(), &pb, cb.shape()).map_or(true, |i| i.intersecting))
+}
+
+/// Distance between object `a` at `pose_a` and object `b` at its current pose (their
+/// colliders; 0 when they touch).
+fn collider_distance(
+    world: &World,
+    a: ObjectHandle,
+    pose_a: &Pose,
+    b: ObjectHandle,
+) -> Result<f32, WorldError> {
+    let ca = &world.physics.colliders[world.object_collider(a)?];
+    let cb = &world.physics.colliders[world.object_collider(b)?];
+    let non_finite = || WorldError::NonFinitePose {
+        what: "scattered placement".into(),
+    };
+    let pa = pose_to_rapier(pose_a).ok_or_else(non_finite)?;
+    let pb = pose_to_rapier(&world.object_pose(b)?).ok_or_else(non_finite)?;
+    Ok(distance(&pa, ca.shape(), &pb, cb.shape()).map_or(0.0, |d| d.distance))
 }
 
 /// Sets the table for one round: spawns `picks` (library indices) as `scenario` arranges them,
@@ -381,6 +422,38 @@ pub fn set_table<R: Rng + ?Sized>(
                     d = last_free;
                 }
                 world.reset_object_pose(h, &at(d))?;
+                spawned.push((h, i, name));
+            }
+            world.settle();
+        }
+        Scenario::Scattered => {
+            let r = config.scattered_half_extent_m;
+            for &i in picks {
+                let name = name_of(i, &spawned);
+                let rotation = uniform_yaw(rng);
+                let at = |x: f32, y: f32| Pose::from_parts(Translation3::new(x, y, top), rotation);
+                let h = shapes.spawn(world, i, &name, &library[i], &at(cx, cy))?;
+                // The first draw that keeps the clearance to every object, else the draw
+                // farthest from its nearest neighbour.
+                let mut best: Option<(f32, Pose)> = None;
+                for _ in 0..config.scattered_tries {
+                    let x = cx + r * rng.random_range(-1.0_f32..=1.0);
+                    let y = cy + r * rng.random_range(-1.0_f32..=1.0);
+                    let pose = at(x, y);
+                    let mut nearest = f32::INFINITY;
+                    for (other, _, _) in &spawned {
+                        nearest = nearest.min(collider_distance(world, h, &pose, *other)?);
+                    }
+                    if best.as_ref().is_none_or(|(d, _)| nearest > *d) {
+                        best = Some((nearest, pose));
+                    }
+                    if nearest >= config.scattered_clearance_m {
+                        break;
+                    }
+                }
+                if let Some((_, pose)) = best {
+                    world.reset_object_pose(h, &pose)?;
+                }
                 spawned.push((h, i, name));
             }
             world.settle();
@@ -494,4 +567,51 @@ pub fn on_table(world: &World, handle: ObjectHandle) -> Result<bool, WorldError>
     Ok((com[0] - t.center_m[0]).abs() <= 0.5 * t.size_m[0]
         && (com[1] - t.center_m[1]).abs() <= 0.5 * t.size_m[1]
         && com[2] > t.top_z_m() - 0.01)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::WorldConfig;
+    use lgdm_pointcloud::objects::procedural_library;
+    use rand::SeedableRng;
+
+    /// Scattered objects stand apart, by the clearance, on the table and at rest.
+    #[test]
+    fn scattered_objects_keep_their_clearance() {
+        let library =
+            procedural_library(&["can", "mug", "apple", "glass", "bottle"], 1, 0).unwrap();
+        let config = ScenarioConfig::default();
+        for seed in 0..3 {
+            let mut world = World::new(WorldConfig::default()).unwrap();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut shapes = LibraryShapes::hulls(library.len());
+            let picks: Vec<usize> = (0..5).collect();
+            let placed = set_table(
+                &mut world,
+                Scenario::Scattered,
+                &library,
+                &mut shapes,
+                &picks,
+                &config,
+                &mut rng,
+            )
+            .unwrap();
+            assert_eq!(placed.len(), 5);
+            for (i, a) in placed.iter().enumerate() {
+                assert!(on_table(&world, a.handle).unwrap());
+                let pose = world.object_pose(a.handle).unwrap();
+                for b in &placed[i + 1..] {
+                    let d = collider_distance(&world, a.handle, &pose, b.handle).unwrap();
+                    // Settling may move them by a millimetre or two.
+                    assert!(
+                        d > config.scattered_clearance_m - 0.005,
+                        "seed {seed}: {} and {} {d} m apart",
+                        a.name,
+                        b.name
+                    );
+                }
+            }
+        }
+    }
 }

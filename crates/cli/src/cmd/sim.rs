@@ -67,6 +67,8 @@ pub enum ScenarioArg {
     Packed,
     /// 5 objects dropped in a heap.
     Pile,
+    /// 5 objects placed apart at random (the paper's pick-and-place table).
+    Scattered,
 }
 
 impl From<ScenarioArg> for Scenario {
@@ -75,6 +77,7 @@ impl From<ScenarioArg> for Scenario {
             ScenarioArg::Isolated => Scenario::Isolated,
             ScenarioArg::Packed => Scenario::Packed,
             ScenarioArg::Pile => Scenario::Pile,
+            ScenarioArg::Scattered => Scenario::Scattered,
         }
     }
 }
