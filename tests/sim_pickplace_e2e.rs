@@ -16,7 +16,7 @@ use std::process::Output;
 
 #[path = "common/mod.rs"]
 mod common;
-use common::{check, lgdm};
+use common::{assert_rate, check, lgdm, read_results, without_wall};
 
 fn work_dir() -> PathBuf {
     common::work_dir("sim-pickplace-e2e")
@@ -30,38 +30,6 @@ fn pick_place(out: &Path, args: &[&str]) -> Output {
         .arg(out)
         .output()
         .unwrap()
-}
-
-fn read_results(dir: &Path) -> Value {
-    let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
-    serde_json::from_str(&text).unwrap()
-}
-
-/// results.json without the wall-clock fields (every object named `wall`).
-fn without_wall(v: &Value) -> Value {
-    match v {
-        Value::Object(m) => Value::Object(
-            m.iter()
-                .filter(|(k, _)| k.as_str() != "wall")
-                .map(|(k, v)| (k.clone(), without_wall(v)))
-                .collect(),
-        ),
-        Value::Array(a) => Value::Array(a.iter().map(without_wall).collect()),
-        other => other.clone(),
-    }
-}
-
-fn assert_rate(rate: &Value, what: &str) {
-    let trials = rate["trials"]
-        .as_u64()
-        .unwrap_or_else(|| panic!("{what}: {rate}"));
-    let successes = rate["successes"].as_u64().unwrap();
-    assert!(successes <= trials, "{what}: {rate}");
-    let (lo, hi) = (
-        rate["wilson_low"].as_f64().unwrap(),
-        rate["wilson_high"].as_f64().unwrap(),
-    );
-    assert!(lo <= hi && (0.0..=1.0).contains(&lo) && (0.0..=1.0).contains(&hi));
 }
 
 fn stderr(out: &Output) -> String {

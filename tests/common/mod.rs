@@ -1,4 +1,5 @@
-//! Helpers shared by the end-to-end tests that drive the real `lgdm` binary (`e2e`, `e2e_ae`).
+//! Helpers shared by the end-to-end tests that drive the real `lgdm` binary (`e2e`, `e2e_ae`,
+//! `sim_e2e`, `sim_pickplace_e2e`).
 //! Each test binary includes this file with `#[path]` and uses what it needs.
 #![allow(dead_code)]
 
@@ -50,5 +51,51 @@ pub fn without_times(v: &serde_json::Value) -> serde_json::Value {
         ),
         Value::Array(a) => Value::Array(a.iter().map(without_times).collect()),
         other => other.clone(),
+    }
+}
+
+/// A run directory's results.json.
+pub fn read_results(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// A sim run's results.json without the wall-clock fields (every object named `wall`).
+pub fn without_wall(v: &serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Object(m) => Value::Object(
+            m.iter()
+                .filter(|(k, _)| k.as_str() != "wall")
+                .map(|(k, v)| (k.clone(), without_wall(v)))
+                .collect(),
+        ),
+        Value::Array(a) => Value::Array(a.iter().map(without_wall).collect()),
+        other => other.clone(),
+    }
+}
+
+/// A sim rate (`successes`, `trials`, `value`, Wilson interval) is consistent.
+pub fn assert_rate(rate: &serde_json::Value, what: &str) {
+    let trials = rate["trials"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("{what}: {rate}"));
+    let successes = rate["successes"].as_u64().unwrap();
+    assert!(successes <= trials, "{what}: {rate}");
+    let (lo, hi) = (
+        rate["wilson_low"].as_f64().unwrap(),
+        rate["wilson_high"].as_f64().unwrap(),
+    );
+    assert!(
+        (0.0..=1.0).contains(&lo) && (0.0..=1.0).contains(&hi) && lo <= hi,
+        "{what}: {rate}"
+    );
+    if trials > 0 {
+        let v = rate["value"].as_f64().unwrap();
+        assert!(
+            (v - successes as f64 / trials as f64).abs() < 1e-12,
+            "{what}: {rate}"
+        );
+        assert!(lo <= v && v <= hi, "{what}: {rate}");
     }
 }

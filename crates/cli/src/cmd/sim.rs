@@ -360,16 +360,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
         "contact_only_success_rate": s.contact_only_success_rate.value,
         "seconds": started.elapsed().as_secs_f64(),
     }));
-    if robot.progress != ProgressMode::Jsonl {
-        println!("{table}");
-        if record.is_some() {
-            println!(
-                "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
-                robot.out.join(ROUNDS_DIR).display()
-            );
-        }
-        println!("wrote {}", robot.out.display());
-    }
+    print_end(robot, &table, record.is_some());
     Ok(())
 }
 
@@ -719,17 +710,24 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
         "cleared_fraction": s.cleared_fraction.value,
         "seconds": started.elapsed().as_secs_f64(),
     }));
-    if robot.progress != ProgressMode::Jsonl {
-        println!("{table}");
-        if record.is_some() {
-            println!(
-                "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
-                robot.out.join(ROUNDS_DIR).display()
-            );
-        }
-        println!("wrote {}", robot.out.display());
-    }
+    print_end(robot, &table, record.is_some());
     Ok(())
+}
+
+/// The end of a run on the terminal (not with `--progress jsonl`): the summary table, where the
+/// recorded rounds are, the run directory.
+fn print_end(robot: &RobotArgs, table: &str, recorded: bool) {
+    if robot.progress == ProgressMode::Jsonl {
+        return;
+    }
+    println!("{table}");
+    if recorded {
+        println!(
+            "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
+            robot.out.join(ROUNDS_DIR).display()
+        );
+    }
+    println!("wrote {}", robot.out.display());
 }
 
 /// The pick-and-place summary: recognition and teacher first, then the grasp run's table.
