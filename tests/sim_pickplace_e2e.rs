@@ -1,11 +1,17 @@
-//! End-to-end tests of `lgdm sim pick-place`, driving the real binary: a two-round run from an
-//! empty model writes `results.json` whose attempts carry the recognition (true and predicted
-//! labels, confidence, the teacher's part) and whose summary holds the first-guess accuracy, the
-//! teacher interventions, grasp and placement rates and the cleared fraction with Wilson
-//! intervals; it saves the learnt model as a dual-memory checkpoint that loads and that a second
-//! run starts from; the same seed gives the same results (wall-clock fields aside); bad input
-//! (`--rounds 0`, `--attempts 0`, a `--model` of another feature dimension, a model trained with
-//! another encoder) fails with a message naming the problem and writes nothing.
+//! End-to-end tests of `lgdm sim pick-place` and `lgdm sim packing`, driving the real binary: a
+//! two-round run from an empty model writes `results.json` whose attempts carry the recognition
+//! (true and predicted labels, confidence, the teacher's part) and whose summary holds the
+//! first-guess accuracy, the teacher interventions, grasp and placement rates and the cleared
+//! fraction with Wilson intervals; it saves the learnt model as a dual-memory checkpoint that
+//! loads and that a second run starts from; the same seed gives the same results (wall-clock
+//! fields aside); bad input (`--rounds 0`, `--attempts 0`, a `--model` of another feature
+//! dimension, a model trained with another encoder, an unknown `--targets` category) fails with a
+//! message naming the problem and writes nothing. Packing carries each object to the basket of
+//! the category it was recognised as and counts a success only in the basket of its true
+//! category (a target object packed into the right basket counts; a placement in the wrong basket
+//! is `misrecognised`). With `--arrive-after K` the rounds before K show only the early
+//! categories, the later ones only the rest, and the run ends with the early categories'
+//! first-guess accuracy from fresh views.
 //!
 //! Run in release (`cargo test --release -p lgdm-cli --test sim_pickplace_e2e`): the physics is
 //! slow in a debug build.
@@ -25,6 +31,16 @@ fn work_dir() -> PathBuf {
 fn pick_place(out: &Path, args: &[&str]) -> Output {
     lgdm(&work_dir().join("cache"))
         .args(["sim", "pick-place", "--progress", "none"])
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+fn packing(out: &Path, args: &[&str]) -> Output {
+    lgdm(&work_dir().join("cache"))
+        .args(["sim", "packing", "--progress", "none"])
         .args(args)
         .arg("--out")
         .arg(out)
@@ -212,4 +228,160 @@ fn bad_input_is_refused_before_anything_is_written() {
     let e = pick_place(&out, &["--rounds", "1", "--scenario", "isolated"]);
     assert!(!e.status.success() && stderr(&e).contains("isolated"));
     assert!(!out.exists(), "a refused run wrote {}", out.display());
+}
+
+#[test]
+fn packing_sorts_by_the_recognised_category_and_judges_by_the_true_one() {
+    let dir = work_dir();
+    let out = dir.join("packing");
+    let run = check(
+        packing(
+            &out,
+            &["--targets", "mug,can", "--rounds", "3", "--seed", "3"],
+        ),
+        "packing",
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("packing success"), "{stdout}");
+    let r = read_results(&out);
+    assert_eq!(
+        r["run"]["packing"]["targets"],
+        serde_json::json!(["mug", "can"])
+    );
+    assert_eq!(r["run"]["packing"]["target_basket"], 1);
+    assert_eq!(r["run"]["packing"]["other_basket"], 0);
+    let s = &r["summary"];
+    let p = &s["packing"];
+    assert_rate(&p["success_rate"], "success_rate");
+    assert_rate(&p["packed_fraction"], "packed_fraction");
+    assert_rate(&s["cleared_fraction"], "cleared_fraction");
+    assert_eq!(p["success_rate"]["trials"], s["attempts"]);
+    assert_eq!(p["packed_fraction"]["trials"].as_u64(), Some(15));
+    let reasons = s["failure_reasons"].as_object().unwrap();
+    assert_eq!(reasons["misrecognised"], p["misrecognised"], "{s}");
+    for key in ["guess", "teacher", "nothing"] {
+        assert!(p["decided_by"].get(key).is_some(), "{p}");
+    }
+    // Every verdict follows the rule: success = placed, in the basket of the true category;
+    // a placement in the other basket is misrecognised.
+    let baskets = &r["config"]["world"]["baskets"];
+    let mut successes = 0;
+    let mut right_basket_target = false;
+    for a in r["attempts"].as_array().unwrap() {
+        let Some(pk) = a.get("packing") else {
+            assert_eq!(a["reason"], "no_grasp_found", "{a}");
+            continue;
+        };
+        let placed = a["placement_success"].as_bool().unwrap();
+        let success = pk["success"].as_bool().unwrap();
+        assert_eq!(success, placed && pk["basket"] == pk["true_basket"], "{a}");
+        assert_eq!(placed && !success, a["reason"] == "misrecognised", "{a}");
+        let truth = pk["true_category"].as_str().unwrap();
+        let target = truth == "mug" || truth == "can";
+        assert_eq!(pk["true_basket"], if target { 1 } else { 0 }, "{a}");
+        if placed {
+            // It lies in the basket chosen: the right one (x < 0) or the left one (x > 0).
+            let x = a["measured"]["placed_at_m"][0].as_f64().unwrap();
+            let bx = baskets[pk["basket"].as_u64().unwrap() as usize]["floor_center_m"][0]
+                .as_f64()
+                .unwrap();
+            assert!((x - bx).abs() < 0.15, "{x} vs basket at {bx}: {a}");
+        }
+        if success {
+            successes += 1;
+            right_basket_target |= target && pk["basket"] == 1;
+        }
+    }
+    assert_eq!(p["success_rate"]["successes"].as_u64(), Some(successes));
+    // This seed packs a mug into the right basket, carried there by the arm.
+    assert!(
+        right_basket_target,
+        "no target packed into the right basket"
+    );
+    assert!(out.join("packing_by_category.png").is_file());
+
+    // An unknown target category: named, the known ones listed, nothing written.
+    let bad = dir.join("packing-bad");
+    let e = packing(&bad, &["--targets", "mug,cup", "--rounds", "1"]);
+    let msg = stderr(&e);
+    assert!(!e.status.success(), "{msg}");
+    assert!(
+        msg.contains("unknown target category `cup`") && msg.contains("known: mug, teapot"),
+        "{msg}"
+    );
+    let e = packing(&bad, &["--targets", "mug,", "--rounds", "1"]);
+    assert!(!e.status.success() && stderr(&e).contains("empty category"));
+    assert!(!bad.exists(), "a refused run wrote {}", bad.display());
+}
+
+#[test]
+fn categories_arriving_over_time_end_with_the_early_categories_evaluated() {
+    let dir = work_dir();
+    let out = dir.join("arrive");
+    check(
+        pick_place(
+            &out,
+            &["--rounds", "3", "--arrive-after", "2", "--seed", "5"],
+        ),
+        "pick-place --arrive-after",
+    );
+    let r = read_results(&out);
+    let arrival = &r["run"]["arrival"];
+    assert_eq!(arrival["after_round"], 2);
+    let early: Vec<&str> = arrival["early_categories"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert_eq!(early, ["mug", "teapot", "bowl", "bottle", "vase"]);
+    // Rounds 0 and 1 show early categories only, round 2 late ones only.
+    for round in r["rounds"].as_array().unwrap() {
+        let k = round["round"].as_u64().unwrap();
+        for o in round["objects"].as_array().unwrap() {
+            let name = o.as_str().unwrap();
+            let is_early = early.iter().any(|c| name.starts_with(&format!("{c}_")));
+            assert_eq!(is_early, k < 2, "round {k}: {name}");
+        }
+    }
+    let s = &r["summary"];
+    assert_rate(&s["early_category_accuracy_at_end"], "early category");
+    assert_rate(&s["early_instance_accuracy_at_end"], "early instance");
+    // 10 early objects of the 15 (two instances of each early category), 4 poses each.
+    assert_eq!(s["early_category_accuracy_at_end"]["trials"], 40);
+    let e = &r["arrival_evaluation"]["at_end"];
+    assert_eq!(e["after_rounds"], 3);
+    assert_eq!(e["looks"].as_array().unwrap().len(), 60);
+    assert_eq!(
+        e["early_category_accuracy"],
+        s["early_category_accuracy_at_end"]
+    );
+    assert_rate(&e["late_category_accuracy"], "late category");
+    // The baseline: the same looks when the late categories arrived, which the model did not
+    // know yet (no late lesson before round 2).
+    let switch = &r["arrival_evaluation"]["at_switch"];
+    assert_eq!(switch["after_rounds"], 2);
+    assert_eq!(
+        switch["early_category_accuracy"],
+        s["early_category_accuracy_at_switch"]
+    );
+    assert_eq!(switch["late_category_accuracy"]["successes"], 0, "{switch}");
+    assert!(out.join("end_evaluation.png").is_file());
+    // The evaluation taught nothing: the saved model has the last round's nodes.
+    let memory = r["recognition"]["memory"].as_array().unwrap();
+    let gdm = lgdm_gdm::Gdm::load(&out.join("model.lgdm")).unwrap();
+    assert_eq!(
+        gdm.episodic().len() as u64,
+        memory[3]["episodic_nodes"].as_u64().unwrap()
+    );
+
+    // K must leave rounds for the late categories.
+    let bad = dir.join("arrive-bad");
+    let e = pick_place(&bad, &["--rounds", "2", "--arrive-after", "2"]);
+    assert!(
+        !e.status.success() && stderr(&e).contains("--arrive-after 2"),
+        "{}",
+        stderr(&e)
+    );
+    assert!(!bad.exists());
 }

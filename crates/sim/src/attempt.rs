@@ -243,11 +243,14 @@ pub enum FailureReason {
     SlippedDuringCarry,
     /// The object was released but did not come to rest inside the basket.
     DroppedOutside,
+    /// Packing only (judged by [`crate::packing::judge`], never by [`execute`]): the object was
+    /// placed, but in the basket of a category that is not its own.
+    Misrecognised,
 }
 
 impl FailureReason {
     /// Every reason, in a fixed order.
-    pub const ALL: [FailureReason; 7] = [
+    pub const ALL: [FailureReason; 8] = [
         Self::NoGraspFound,
         Self::Unreachable,
         Self::CollisionOnApproach,
@@ -255,6 +258,7 @@ impl FailureReason {
         Self::SlippedDuringLift,
         Self::SlippedDuringCarry,
         Self::DroppedOutside,
+        Self::Misrecognised,
     ];
 
     /// The snake_case name (as in results.json).
@@ -267,6 +271,7 @@ impl FailureReason {
             Self::SlippedDuringLift => "slipped_during_lift",
             Self::SlippedDuringCarry => "slipped_during_carry",
             Self::DroppedOutside => "dropped_outside",
+            Self::Misrecognised => "misrecognised",
         }
     }
 }

@@ -79,10 +79,12 @@
 #![warn(missing_docs)]
 
 pub mod arm;
+pub mod arrival;
 pub mod attempt;
 pub mod camera;
 pub mod gripper;
 pub mod ik;
+pub mod packing;
 pub mod perception;
 pub mod recognize;
 pub mod record;

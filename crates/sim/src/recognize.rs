@@ -573,6 +573,19 @@ impl Recognizer {
         Ok(self.memory_point())
     }
 
+    /// Runs `f` with a view stream of its own, seeded from `seed`, and gives the run's stream
+    /// and sequence ids back untouched afterwards: looks that must leave the rest of a run as it
+    /// would have been (an evaluation between rounds). Prediction does not change the model.
+    pub fn aside<T>(&mut self, seed: u64, f: impl FnOnce(&mut Self) -> T) -> T {
+        let own = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_VIEWS, 1, 0));
+        let rng = std::mem::replace(&mut self.rng, own);
+        let next_sequence = self.next_sequence;
+        let out = f(self);
+        self.rng = rng;
+        self.next_sequence = next_sequence;
+        out
+    }
+
     /// The model and its label names, for saving.
     pub fn into_parts(self) -> (Gdm, Labels) {
         (self.gdm, self.labels)

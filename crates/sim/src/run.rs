@@ -11,6 +11,12 @@
 //! failure reason. Everything is deterministic except the fields named `wall` (wall-clock
 //! seconds), which a comparison of two runs drops.
 //!
+//! [`run_pick_place`] adds recognition in the loop ([`crate::recognize`]); with
+//! [`RunSpec::packing`] each object goes to the basket of the category the robot recognises it as
+//! and is judged against its true one ([`crate::packing`]), with [`RunSpec::arrival`] the
+//! categories arrive over time and the run ends with the model's first guess about every object
+//! ([`crate::arrival`], [`RunResults::arrival_evaluation`]). One runner plays them all.
+//!
 //! [`SimRunDir`] owns the output directory the way `lgdm train --out` does: a fresh or empty
 //! directory, or with `force` one that holds only a previous run's files; it is locked while
 //! the run writes; files are written atomically (temporary file, then rename).
@@ -42,11 +48,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::arrival::{Arrival, ArrivalError, ArrivalEvaluation, evaluate};
 use crate::attempt::{
     AttemptConfig, AttemptError, Cell, Execution, FailureReason, GraspPlan, Measurements,
     WallTimes, Work, execute, park, plan_grasp,
 };
 use crate::camera::CameraConfig;
+use crate::packing::{PackingError, PackingRecord, PackingSpec, PackingSummary};
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
 use crate::recognize::{
     ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionError, RecognitionRecord,
@@ -58,7 +66,7 @@ use crate::record::{
 };
 use crate::robot::RobotConfig;
 use crate::scenario::{
-    PlacedObject, Scenario, ScenarioConfig, check_library, on_table, round_objects, set_table,
+    PlacedObject, Scenario, ScenarioConfig, check_library, on_table, round_objects_among, set_table,
 };
 use crate::shapes::{LibraryShapes, ShapeConfig};
 use crate::source::{AnalyticSource, GraspQuery, GraspSource, RandomSource, SourceError};
@@ -131,6 +139,14 @@ pub struct RunSpec {
     /// Stop after this many attempts in all (none: play every round).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_attempts: Option<usize>,
+    /// Packing: each object goes to the basket of the category it is recognised as (none: every
+    /// object to [`AttemptConfig::target_basket`]). Needs recognition ([`run_pick_place`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingSpec>,
+    /// Categories arriving over time, and the end-of-run evaluation of the early ones (none: every
+    /// round draws from the whole library). Needs recognition ([`run_pick_place`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arrival: Option<Arrival>,
     /// Every constant.
     pub config: SimConfig,
 }
@@ -144,6 +160,8 @@ impl RunSpec {
             seed,
             objects: "procedural".into(),
             max_attempts: None,
+            packing: None,
+            arrival: None,
             config: SimConfig::default(),
         }
     }
@@ -183,6 +201,12 @@ pub enum SimError {
     /// Recognition or learning failed.
     #[error("recognition: {0}")]
     Recognition(#[from] RecognitionError),
+    /// A bad packing spec (an unknown target category, a missing basket).
+    #[error("packing: {0}")]
+    Packing(#[from] PackingError),
+    /// A bad arrival plan.
+    #[error("categories arriving over time: {0}")]
+    Arrival(#[from] ArrivalError),
     /// The run directory cannot be used or written.
     #[error("run directory {}: {reason}", path.display())]
     RunDir {
@@ -268,6 +292,9 @@ pub struct AttemptRecord {
     /// Recognition of the object aimed at, and the teacher's part (pick-and-place runs only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recognition: Option<RecognitionRecord>,
+    /// Packing runs: the basket chosen, the one the object belongs in, the verdict.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingRecord>,
     /// Measurements.
     pub measured: Measurements,
     /// Simulated seconds the attempt took (including parking the arm after it).
@@ -436,6 +463,20 @@ pub struct Summary {
     /// Pick-and-place: teacher interventions / recognitions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub teacher_intervention_rate: Option<Rate>,
+    /// Packing: success (the right basket for the true category), objects packed, failures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingSummary>,
+    /// Categories arriving over time: the early categories' first-guess category accuracy at
+    /// the end of the run ([`ArrivalEvaluation::at_end`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_category_accuracy_at_end: Option<Rate>,
+    /// The same for instances.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_instance_accuracy_at_end: Option<Rate>,
+    /// The early categories' first-guess category accuracy when the late ones arrived
+    /// ([`ArrivalEvaluation::at_switch`]): the baseline of the forgetting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_category_accuracy_at_switch: Option<Rate>,
 }
 
 /// Summarises attempts and rounds.
@@ -470,8 +511,14 @@ pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord]) -> Summary 
             )
         })
         .collect();
+    // `misrecognised` is a packing verdict: listed in packing runs only.
+    let packing = attempts.iter().any(|a| a.packing.is_some())
+        || attempts
+            .iter()
+            .any(|a| a.reason == Some(FailureReason::Misrecognised));
     let mut failure_reasons: BTreeMap<String, usize> = FailureReason::ALL
         .iter()
+        .filter(|r| packing || **r != FailureReason::Misrecognised)
         .map(|r| (r.as_str().to_string(), 0))
         .collect();
     for a in attempts {
@@ -502,6 +549,10 @@ pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord]) -> Summary 
         contact_only_success_rate: Rate::new(count(&|a| a.contact_only_success, &all), n),
         per_category,
         failure_reasons,
+        packing: packing.then(|| crate::packing::summarize(attempts, presented)),
+        early_category_accuracy_at_end: None,
+        early_instance_accuracy_at_end: None,
+        early_category_accuracy_at_switch: None,
     }
 }
 
@@ -522,6 +573,12 @@ pub struct RunInfo {
     pub objects: String,
     /// Objects in the library.
     pub library_size: usize,
+    /// Packing runs: the target categories and the baskets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingSpec>,
+    /// Categories arriving over time: the plan.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arrival: Option<Arrival>,
 }
 
 /// Wall-clock totals of a run (not deterministic).
@@ -540,6 +597,9 @@ pub struct RunWall {
     /// Seconds of intrinsic replay at the rounds' ends (pick-and-place).
     #[serde(default)]
     pub replay_s: f64,
+    /// Seconds of the evaluations (categories arriving over time).
+    #[serde(default)]
+    pub evaluation_s: f64,
 }
 
 /// Everything `results.json` holds.
@@ -560,6 +620,10 @@ pub struct RunResults {
     /// Pick-and-place: the recognition's setup, labels and memory over the run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recognition: Option<RecognitionRun>,
+    /// Categories arriving over time: the first guesses about every object of the set when the
+    /// late categories arrived and at the end of the run (no teacher, no learning).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arrival_evaluation: Option<ArrivalEvaluation>,
     /// Wall-clock totals (not deterministic).
     pub wall: RunWall,
 }
@@ -759,6 +823,24 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             .filter(|h| Some(*h) != target)
             .and_then(find)
             .map(|o| o.name.clone());
+        // Packing: the basket [`Runner::attempt`] carried to (the same choice from the same
+        // recognition), judged against the true category of the object carried.
+        let (packing, reason) = match &self.spec.packing {
+            // Attempts at no object (nothing seen, no grasp anywhere) carry no packing record.
+            Some(spec) if target.is_some() || grasp.is_some() => {
+                let choice = spec.choose(self.pending_recognition.as_ref());
+                let carried = exec.pinched_object.or(target).and_then(find);
+                let (record, reason) = crate::packing::judge(
+                    spec,
+                    choice,
+                    carried.map(|o| o.category.as_str()),
+                    exec.placement_success,
+                    exec.reason,
+                );
+                (Some(record), reason)
+            }
+            _ => (None, exec.reason),
+        };
         clock.wall.finish(clock.start);
         self.attempts.push(AttemptRecord {
             index: self.attempts.len(),
@@ -772,8 +854,9 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
             grasp_success: exec.grasp_success,
             contact_only_success: exec.contact_only_success,
             placement_success: exec.placement_success,
-            reason: exec.reason,
+            reason,
             recognition: self.pending_recognition.take(),
+            packing,
             measured: exec.measured,
             sim_time_s: cell.world.time_s() - clock.sim_start_s,
             wall: clock.wall,
@@ -846,7 +929,35 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         clock: &mut AttemptClock,
     ) -> Result<(Option<ObjectHandle>, GraspRecord, Execution), SimError> {
         let view = &views[candidate.view];
-        let cfg = &self.spec.config.attempt;
+        let spec = self.spec;
+        // Packing: the basket of the category the robot recognised (see [`crate::packing`]).
+        let choice = spec
+            .packing
+            .as_ref()
+            .map(|p| p.choose(self.pending_recognition.as_ref()));
+        let packing_cfg;
+        let cfg = match &choice {
+            Some(c) if c.basket != spec.config.attempt.target_basket => {
+                packing_cfg = AttemptConfig {
+                    target_basket: c.basket,
+                    ..spec.config.attempt.clone()
+                };
+                &packing_cfg
+            }
+            _ => &spec.config.attempt,
+        };
+        if let (Some(r), Some(c)) = (&self.recorder, &choice) {
+            r.log(
+                &cell.world,
+                crate::record::LogLevel::Info,
+                &format!(
+                    "packing as {} ({}): {} basket",
+                    c.packed_as.as_deref().unwrap_or("nothing recognised"),
+                    c.decided_by.as_str(),
+                    crate::packing::basket_name(c.basket)
+                ),
+            );
+        }
         let plan = clock.wall.time(Work::Planning, || {
             plan_grasp(cell, view, &candidate.world, cfg)
         });
@@ -896,7 +1007,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
         let cfg = &self.spec.config;
         let scenario = self.spec.scenario;
         let mut rng = round_rng(self.spec, round);
-        let picks = round_objects(scenario, self.library, round, &cfg.scenario, &mut rng);
+        let picks = round_picks(self.spec, self.library, round, &mut rng);
         let setup_start = Instant::now();
         let mut world = World::new(cfg.world.clone())?;
         self.recorder = match &self.record {
@@ -1233,6 +1344,19 @@ fn play<'a>(
     }
     spec.config.validate()?;
     check_library(&spec.config.world, library)?;
+    if let Some(packing) = &spec.packing {
+        let Some(r) = recognizer.as_deref() else {
+            return Err(PackingError::NoRecognition.into());
+        };
+        let known = crate::packing::known_categories(library, r.labels());
+        packing.validate(&known, &spec.config.world)?;
+    }
+    if let Some(arrival) = &spec.arrival {
+        if recognizer.is_none() {
+            return Err(ArrivalError::NoRecognition.into());
+        }
+        arrival.validate(spec.rounds)?;
+    }
     let perception = Perception::new(spec.config.cameras.clone())?;
     let mut runner = Runner {
         spec,
@@ -1257,22 +1381,34 @@ fn play<'a>(
     let used: Vec<usize> = (0..spec.rounds)
         .flat_map(|round| {
             let mut rng = round_rng(spec, round);
-            round_objects(
-                spec.scenario,
-                library,
-                round,
-                &spec.config.scenario,
-                &mut rng,
-            )
+            round_picks(spec, library, round, &mut rng)
         })
         .collect();
     runner.shapes.prepare(library, &used);
     let mut rounds = Vec::with_capacity(spec.rounds);
     let mut setup_s = 0.0;
     let mut sim_s = 0.0;
+    let mut evaluation_s = 0.0;
+    let mut at_switch = None;
     for r in 0..spec.rounds {
         if runner.budget_spent() {
             break;
+        }
+        // Categories arriving over time: what the early rounds taught, before the late ones.
+        if let (Some(arrival), Some(recognizer)) = (&spec.arrival, runner.recognizer.as_deref_mut())
+            && arrival.after_round == r
+        {
+            let start = Instant::now();
+            at_switch = Some(evaluate(
+                recognizer,
+                &spec.config.world,
+                library,
+                arrival,
+                spec.config.scenario.clutter_center_xy_m,
+                spec.seed,
+                r,
+            )?);
+            evaluation_s += start.elapsed().as_secs_f64();
         }
         let (record, setup) = runner.round(r)?;
         setup_s += setup;
@@ -1281,6 +1417,25 @@ fn play<'a>(
         runner.rounds_done = r + 1;
         runner.progress();
     }
+    // Categories arriving over time: what the model still knows of every object at the end.
+    let evaluation_start = Instant::now();
+    let arrival_evaluation = match (&spec.arrival, runner.recognizer.as_deref_mut()) {
+        (Some(arrival), Some(r)) => Some(ArrivalEvaluation {
+            arrival: arrival.clone(),
+            at_switch,
+            at_end: evaluate(
+                r,
+                &spec.config.world,
+                library,
+                arrival,
+                spec.config.scenario.clutter_center_xy_m,
+                spec.seed,
+                rounds.len(),
+            )?,
+        }),
+        _ => None,
+    };
+    evaluation_s += evaluation_start.elapsed().as_secs_f64();
     let recognition = runner.recognizer.as_deref().map(|r| RecognitionRun {
         encoder: ENCODER.to_string(),
         start_model: r.origin().to_string(),
@@ -1291,7 +1446,22 @@ fn play<'a>(
     let replay_s = runner.replay_s;
     let attempts = runner.attempts;
     let n_attempts = attempts.len();
-    let summary = summarize(&attempts, &rounds);
+    let mut summary = summarize(&attempts, &rounds);
+    if spec.packing.is_some() && summary.packing.is_none() {
+        // No attempt reached an object: packing's rates are still reported (all failures).
+        let presented = rounds.iter().map(|r| r.objects.len()).sum();
+        summary.packing = Some(crate::packing::summarize(&attempts, presented));
+        summary
+            .failure_reasons
+            .entry(FailureReason::Misrecognised.as_str().to_string())
+            .or_insert(0);
+    }
+    if let Some(e) = &arrival_evaluation {
+        summary.early_category_accuracy_at_end = Some(e.at_end.early_category_accuracy);
+        summary.early_instance_accuracy_at_end = Some(e.at_end.early_instance_accuracy);
+        summary.early_category_accuracy_at_switch =
+            e.at_switch.as_ref().map(|s| s.early_category_accuracy);
+    }
     let mut attempt_wall = WallTimes::default();
     for a in &attempts {
         attempt_wall.add(&a.wall);
@@ -1307,12 +1477,15 @@ fn play<'a>(
             seed: spec.seed,
             objects: spec.objects.clone(),
             library_size: library.len(),
+            packing: spec.packing.clone(),
+            arrival: spec.arrival.clone(),
         },
         summary,
         attempts,
         rounds,
         config: spec.config.clone(),
         recognition,
+        arrival_evaluation,
         wall: RunWall {
             total_s,
             setup_s,
@@ -1320,8 +1493,31 @@ fn play<'a>(
             per_attempt_s: attempt_wall.total_s / n_attempts.max(1) as f64,
             real_time_factor: if total_s > 0.0 { sim_s / total_s } else { 0.0 },
             replay_s,
+            evaluation_s,
         },
     })
+}
+
+/// The library indices of round `round`'s objects: drawn from the whole library, or from the
+/// categories of the round's stage when they arrive over time.
+fn round_picks(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    round: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<usize> {
+    let pool: Vec<usize> = match &spec.arrival {
+        Some(a) => a.pool(library, round),
+        None => (0..library.len()).collect(),
+    };
+    round_objects_among(
+        spec.scenario,
+        library,
+        &pool,
+        round,
+        &spec.config.scenario,
+        rng,
+    )
 }
 
 /// The random stream of round `round`: it draws the round's objects, then their poses.
@@ -1338,6 +1534,9 @@ fn round_rng(spec: &RunSpec, round: usize) -> ChaCha8Rng {
 fn attempt_caption(a: &AttemptRecord) -> String {
     let object = a.object.as_deref().unwrap_or("no object");
     let outcome = match (a.grasp_success, a.placement_success, a.reason) {
+        (true, true, Some(FailureReason::Misrecognised)) => {
+            "grasp ok, placed in the wrong basket (misrecognised)".to_string()
+        }
         (true, true, _) => "grasp ok, placed".to_string(),
         (true, false, r) => format!(
             "grasp ok, not placed ({})",

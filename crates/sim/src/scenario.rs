@@ -246,23 +246,47 @@ pub fn round_objects<R: Rng + ?Sized>(
     config: &ScenarioConfig,
     rng: &mut R,
 ) -> Vec<usize> {
-    if library.is_empty() {
+    let all: Vec<usize> = (0..library.len()).collect();
+    round_objects_among(scenario, library, &all, round, config, rng)
+}
+
+/// [`round_objects`] drawing only from the library indices in `pool` (e.g. the categories that
+/// have arrived by this round): isolated rounds take the pool's objects in the library's
+/// category-by-category order, packed and pile rounds draw from the pool. With every index in
+/// `pool` it is [`round_objects`], draw for draw.
+pub fn round_objects_among<R: Rng + ?Sized>(
+    scenario: Scenario,
+    library: &[ObjectModel],
+    pool: &[usize],
+    round: usize,
+    config: &ScenarioConfig,
+    rng: &mut R,
+) -> Vec<usize> {
+    let pool: Vec<usize> = pool
+        .iter()
+        .copied()
+        .filter(|&i| i < library.len())
+        .collect();
+    if pool.is_empty() {
         return Vec::new();
     }
     match scenario {
         Scenario::Isolated => {
-            let order = interleaved_order(library);
+            let order: Vec<usize> = interleaved_order(library)
+                .into_iter()
+                .filter(|i| pool.contains(i))
+                .collect();
             vec![order[round % order.len()]]
         }
         Scenario::Packed | Scenario::Pile | Scenario::Scattered => {
-            let mut pool: Vec<usize> = (0..library.len()).collect();
+            let mut left = pool.clone();
             let mut out = Vec::with_capacity(config.clutter_objects);
             for _ in 0..config.clutter_objects {
-                if pool.is_empty() {
-                    pool = (0..library.len()).collect();
+                if left.is_empty() {
+                    left = pool.clone();
                 }
-                let k = rng.random_range(0..pool.len());
-                out.push(pool.swap_remove(k));
+                let k = rng.random_range(0..left.len());
+                out.push(left.swap_remove(k));
             }
             out
         }

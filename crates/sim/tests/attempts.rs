@@ -84,9 +84,17 @@ fn analytic_grasps_simple_objects_and_beats_random() {
 }
 
 /// One attempt through the library's parts: a can on the table, seen, grasped analytically,
-/// carried and released; it ends at rest in the basket, off the table.
+/// carried and released; it ends at rest in the basket, off the table — in the left basket
+/// (basket 0, x = +0.7 m, where pick-and-place puts everything) and in the right one (basket 1,
+/// x = −0.7 m, where packing puts the target categories): both are reached.
 #[test]
 fn a_placed_object_ends_in_the_basket() {
+    for basket in [0, 1] {
+        place_a_can_in(basket);
+    }
+}
+
+fn place_a_can_in(basket: usize) {
     let mut world = World::new(WorldConfig::default()).unwrap();
     let top = world.config().table.top_z_m();
     let can = procedural_object("can", 0, 2).unwrap();
@@ -108,7 +116,10 @@ fn a_placed_object_ends_in_the_basket() {
     };
     let grasps = AnalyticSource::new().grasps(&query, 3).unwrap();
     assert!(!grasps.is_empty());
-    let config = AttemptConfig::default();
+    let config = AttemptConfig {
+        target_basket: basket,
+        ..AttemptConfig::default()
+    };
     let grasp = view.grasp_in_world(&grasps[0], &config.decode).unwrap();
     // The grasp is on the can: within its radius of its axis, jaws no wider than the stroke.
     let d = (grasp.position_m[0] - 0.08).hypot(grasp.position_m[1] + 0.55);
@@ -117,12 +128,18 @@ fn a_placed_object_ends_in_the_basket() {
     assert!(plan.opening_m <= 0.085 + 1e-9 && plan.opening_m > grasp.opening_m);
     let mut wall = WallTimes::default();
     let exec = execute(&mut cell, &plan, view.object, &config, &mut wall).unwrap();
-    assert!(exec.grasp_success && exec.placement_success, "{exec:?}");
+    assert!(
+        exec.grasp_success && exec.placement_success,
+        "basket {basket}: {exec:?}"
+    );
     assert_eq!(exec.pinched_object, Some(h));
     let pose = cell.world.object_pose(h).unwrap();
     let com = transform_point(&pose, [0.0, 0.0, 0.05]);
-    let (lo, hi) = cell.world.config().baskets[0].inner_bounds_m();
-    assert!((0..2).all(|i| com[i] > lo[i] && com[i] < hi[i]), "{com:?}");
+    let (lo, hi) = cell.world.config().baskets[basket].inner_bounds_m();
+    assert!(
+        (0..2).all(|i| com[i] > lo[i] && com[i] < hi[i]),
+        "basket {basket}: {com:?}"
+    );
     assert!(!on_table(&cell.world, h).unwrap());
     // Parking returns to the ready joints exactly, so wrist turns cannot add up over a
     // round's attempts (they once drove joint 6 to its limit: "unreachable").

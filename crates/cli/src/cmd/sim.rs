@@ -10,6 +10,16 @@
 //! is checked before the run directory is touched: `--rounds 0`, a mesh whose convex hull
 //! cannot be built or an object larger than the table are errors naming the problem.
 //!
+//! `lgdm sim pick-place` adds recognition in the loop (the dual memory's first guess, a simulated
+//! teacher, learning on the spot, replay after each round) and places everything in the left
+//! basket; `--arrive-after K` lets the categories arrive over time (the first half of the object
+//! set's categories before round K, the rest from K on) and ends with the model's first guess
+//! about every object from fresh views (`early_category_accuracy_at_end`). `lgdm sim packing
+//! --targets mug,can` is the same run with the same options, except that each object goes to the
+//! basket of the category the robot recognises it as — the targets to the right basket,
+//! everything else to the left — and an attempt succeeds only in the basket of the object's true
+//! category ([`lgdm_sim::packing`]).
+//!
 //! `--record` also writes every round (or the first `--record-rounds N`) for Foxglove:
 //! `rounds/round-NNNN.mcap` (transforms of every body, the scene, camera images, the chosen
 //! grasp, events; sim time, so the same seed gives the same bytes) and `rounds/round-NNNN.png`,
@@ -23,7 +33,9 @@ use clap::{Args as ClapArgs, Subcommand, ValueEnum};
 use lgdm_gdm::Gdm;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::objects::{CATEGORIES, ObjectModel, procedural_library};
+use lgdm_sim::arrival::Arrival;
 use lgdm_sim::camera::ObjectDrawing;
+use lgdm_sim::packing::{PackingSpec, basket_name, known_categories};
 use lgdm_sim::recognize::{
     ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionRecord, Recognizer,
 };
@@ -56,6 +68,10 @@ pub enum SimCommand {
     /// teacher labels what the robot does not know or gets wrong; it learns on the spot, replay
     /// after each round), grasp it, place it in the left basket.
     PickPlace(PickPlaceArgs),
+    /// The paper's packing: pick-and-place with recognition where the target categories go to
+    /// the right basket and everything else to the left, by what the robot recognises; success
+    /// only in the basket of the object's true category.
+    Packing(PackingArgs),
 }
 
 /// The scenarios (`--scenario`).
@@ -180,7 +196,8 @@ pub struct PickPlaceArgs {
     /// How the table is set: packed (5 objects pushed together, default) or pile.
     #[arg(long, value_enum, default_value_t = ScenarioArg::Packed)]
     pub scenario: ScenarioArg,
-    /// Rounds to play (5 objects each; default 10 when --attempts is not given either).
+    /// Rounds to play (5 objects each; default when --attempts is not given either: 10 for
+    /// pick-place, 50 for packing).
     #[arg(long)]
     pub rounds: Option<usize>,
     /// Stop after this many grasp attempts (750 gives the paper's shape).
@@ -207,16 +224,40 @@ pub struct PickPlaceArgs {
     /// Below this share of agreeing views the robot says "I don't know this" (0..=1).
     #[arg(long, default_value_t = 0.6)]
     pub confidence: f64,
+    /// Categories arrive over time: rounds before K show only the first half of the object
+    /// set's categories, rounds from K on only the rest; at the end, the model's first guess
+    /// about every object from fresh views, no teacher (results.json:
+    /// early_category_accuracy_at_end). Compare with and without --no-replay.
+    #[arg(long, value_name = "K")]
+    pub arrive_after: Option<usize>,
     /// Source, objects, output, recording.
     #[command(flatten)]
     pub robot: RobotArgs,
+}
+
+/// Arguments of `lgdm sim packing`: pick-place's, and the target categories.
+#[derive(Debug, ClapArgs)]
+pub struct PackingArgs {
+    /// The target categories, comma-separated (e.g. mug,can): packed into the right basket;
+    /// every other category into the left one.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        value_name = "CATEGORIES"
+    )]
+    pub targets: Vec<String>,
+    /// Everything pick-place takes.
+    #[command(flatten)]
+    pub run: PickPlaceArgs,
 }
 
 /// Runs `lgdm sim`.
 pub fn run(args: Args) -> Result<()> {
     match args.command {
         SimCommand::Grasp(args) => grasp(args),
-        SimCommand::PickPlace(args) => pick_place(args),
+        SimCommand::PickPlace(args) => recognition_run(args, None),
+        SimCommand::Packing(args) => recognition_run(args.run, Some(args.targets)),
     }
 }
 
@@ -609,8 +650,33 @@ fn recognizer(
     Ok(recognizer.with_origin(model.display().to_string()))
 }
 
-fn pick_place(args: PickPlaceArgs) -> Result<()> {
+/// `--targets`: trimmed, duplicates dropped (first kept), none empty.
+fn parse_targets(targets: &[String]) -> Result<Vec<String>> {
+    let mut out: Vec<String> = Vec::new();
+    for t in targets {
+        let t = t.trim();
+        if t.is_empty() {
+            bail!("--targets: an empty category name (give e.g. --targets mug,can)");
+        }
+        if !out.iter().any(|o| o == t) {
+            out.push(t.to_string());
+        }
+    }
+    if out.is_empty() {
+        bail!("--targets: no category given (give e.g. --targets mug,can)");
+    }
+    Ok(out)
+}
+
+/// `sim pick-place`, or with `targets` `sim packing`: one runner, one set of options.
+fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<()> {
+    let command = if targets.is_some() {
+        "sim packing"
+    } else {
+        "sim pick-place"
+    };
     let robot = &args.robot;
+    let targets = targets.as_deref().map(parse_targets).transpose()?;
     let reporter = Reporter::new(robot.progress);
     if args.rounds == Some(0) {
         bail!("--rounds 0: at least one round is needed");
@@ -623,7 +689,10 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
     }
     let scenario: Scenario = args.scenario.into();
     if scenario == Scenario::Isolated {
-        bail!("--scenario isolated: pick-place sets 5 objects per round; use packed or pile");
+        bail!(
+            "--scenario isolated: {} sets 5 objects per round; use packed or pile",
+            command.trim_start_matches("sim ")
+        );
     }
     let mut source = source(robot, args.seed, &reporter)?;
     let (library, objects_label) = library(robot, 5, args.object_seed, &reporter)?;
@@ -641,7 +710,8 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
         ));
     }
     // With only --attempts, every round has at least one attempt: that many rounds suffice.
-    let rounds = args.rounds.or(args.attempts).unwrap_or(10);
+    let default_rounds = if targets.is_some() { 50 } else { 10 };
+    let rounds = args.rounds.or(args.attempts).unwrap_or(default_rounds);
     let label = format!(
         "{objects_label}, {} objects: {}",
         set.len(),
@@ -653,6 +723,22 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
     let mut spec = run_spec(robot, scenario, rounds, args.seed, label);
     spec.max_attempts = args.attempts;
     check_library(&spec.config.world, &set).context("the object library")?;
+    // Targets and the arrival plan are checked before the run directory is touched.
+    if let Some(targets) = targets {
+        let packing = PackingSpec::new(targets);
+        let known = known_categories(&set, recognizer.labels());
+        packing
+            .validate(&known, &spec.config.world)
+            .context("--targets")?;
+        spec.packing = Some(packing);
+    }
+    if let Some(k) = args.arrive_after {
+        let arrival = Arrival::split(&set, k).with_context(|| format!("--arrive-after {k}"))?;
+        arrival
+            .validate(rounds)
+            .with_context(|| format!("--arrive-after {k}"))?;
+        spec.arrival = Some(arrival);
+    }
     let record = record_config(robot);
     let mut run_dir = SimRunDir::create(&robot.out, robot.force)?;
     let started = Instant::now();
@@ -660,7 +746,7 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
         Some(n) => (n as u64, "attempts"),
         None => (rounds as u64, "rounds"),
     };
-    let mut task = reporter.bar("sim pick-place", total);
+    let mut task = reporter.bar(command, total);
     let progress = |p: &RunProgress| {
         let done = if args.attempts.is_some() {
             p.attempts
@@ -680,7 +766,7 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
             .map(|c| (c, &mut run_dir as &mut dyn lgdm_sim::record::RoundSink)),
     );
     task.finish();
-    let results = results.context("running pick-and-place")?;
+    let results = results.with_context(|| format!("running {command}"))?;
     run_dir.write_results(&results)?;
     let (gdm, labels) = recognizer.into_parts();
     gdm.save(&run_dir.path().join(MODEL_FILE))
@@ -698,6 +784,7 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
     run_dir.write_file("summary.txt", table.as_bytes())?;
     write_plots(&run_dir, &results).context("drawing the plots")?;
     write_learning_plots(&run_dir, &results).context("drawing the learning curve")?;
+    write_packing_plots(&run_dir, &results).context("drawing the packing plots")?;
     let s = &results.summary;
     reporter.event(&serde_json::json!({
         "event": "done",
@@ -708,6 +795,8 @@ fn pick_place(args: PickPlaceArgs) -> Result<()> {
         "grasp_success_rate": s.grasp_success_rate.value,
         "placement_success_rate": s.placement_success_rate.value,
         "cleared_fraction": s.cleared_fraction.value,
+        "packing_success_rate": s.packing.as_ref().and_then(|p| p.success_rate.value),
+        "early_category_accuracy_at_end": s.early_category_accuracy_at_end.and_then(|r| r.value),
         "seconds": started.elapsed().as_secs_f64(),
     }));
     print_end(robot, &table, record.is_some());
@@ -730,15 +819,105 @@ fn print_end(robot: &RobotArgs, table: &str, recorded: bool) {
     println!("wrote {}", robot.out.display());
 }
 
-/// The pick-and-place summary: recognition and teacher first, then the grasp run's table.
+/// The pick-and-place summary: packing (in a packing run) and the end-of-run evaluation (with
+/// categories arriving over time) first, then recognition and teacher, then the grasp run's
+/// table.
 pub fn pick_place_table(r: &RunResults) -> String {
     use std::fmt::Write;
     let s = &r.summary;
     let mut out = String::new();
+    if let (Some(spec), Some(p)) = (&r.run.packing, &s.packing) {
+        let _ = writeln!(
+            out,
+            "sim packing: {} → {} basket, everything else → {} basket",
+            spec.targets.join(", "),
+            basket_name(spec.target_basket),
+            basket_name(spec.other_basket)
+        );
+        let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
+        let _ = writeln!(
+            out,
+            "{:<28} {}",
+            "packing success (attempts)",
+            p.success_rate.describe()
+        );
+        let _ = writeln!(
+            out,
+            "{:<28} {}",
+            "objects packed correctly",
+            p.packed_fraction.describe()
+        );
+        let _ = writeln!(
+            out,
+            "{:<28} {}",
+            "objects cleared",
+            s.cleared_fraction.describe()
+        );
+        let failures: Vec<String> = s
+            .failure_reasons
+            .iter()
+            .filter(|(_, n)| **n > 0)
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect();
+        let _ = writeln!(
+            out,
+            "failures by cause: {}",
+            if failures.is_empty() {
+                "none".to_string()
+            } else {
+                failures.join(", ")
+            }
+        );
+        let decided: Vec<String> = p
+            .decided_by
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect();
+        let _ = writeln!(out, "baskets chosen by: {}\n", decided.join(", "));
+    }
+    if let Some(e) = &r.arrival_evaluation {
+        let a = &e.arrival;
+        let _ = writeln!(
+            out,
+            "categories arriving over time: {} before round {}, {} from it on",
+            a.early_categories.join(", "),
+            a.after_round,
+            a.late_categories.join(", ")
+        );
+        for (when, ev) in [
+            ("when the late categories arrived", e.at_switch.as_ref()),
+            ("at the end", Some(&e.at_end)),
+        ] {
+            let Some(ev) = ev else { continue };
+            let _ = writeln!(
+                out,
+                "first guess {when}, after {} rounds ({} fresh poses per object, no teacher):",
+                ev.after_rounds, a.eval_poses
+            );
+            for (name, rate) in [
+                ("early categories (category)", &ev.early_category_accuracy),
+                ("early categories (instance)", &ev.early_instance_accuracy),
+                (
+                    "early, answer right (any conf.)",
+                    &ev.early_category_answer_accuracy,
+                ),
+                ("late categories (category)", &ev.late_category_accuracy),
+                ("late categories (instance)", &ev.late_instance_accuracy),
+            ] {
+                let _ = writeln!(out, "  {name:<32} {}", rate.describe());
+            }
+        }
+        let _ = writeln!(out);
+    }
     if let Some(rec) = &r.recognition {
         let _ = writeln!(
             out,
-            "sim pick-place: {} encoder, start model {}, replay {}",
+            "{}: {} encoder, start model {}, replay {}",
+            if r.run.packing.is_some() {
+                "recognition"
+            } else {
+                "sim pick-place"
+            },
             rec.encoder,
             rec.start_model,
             if rec.config.replay { "on" } else { "off" }
@@ -775,6 +954,75 @@ pub fn pick_place_table(r: &RunResults) -> String {
     let grasp = summary_table(r);
     out.push_str(&grasp.replacen("sim grasp:", "grasp and placement:", 1));
     out
+}
+
+/// Packing: `packing_by_category.png` (success by the true category of the object aimed at,
+/// Wilson 95 %). Categories arriving over time: `end_evaluation.png` (first-guess category
+/// accuracy per category at the end, early and late marked).
+fn write_packing_plots(dir: &SimRunDir, r: &RunResults) -> Result<()> {
+    let bar = |label: String, rate: &lgdm_sim::run::Rate| Bar {
+        label,
+        value: rate.value.unwrap_or(0.0),
+        interval: Some((rate.wilson_low, rate.wilson_high)),
+    };
+    if let (Some(spec), Some(p)) = (&r.run.packing, &r.summary.packing) {
+        let bars: Vec<Bar> = p
+            .per_category
+            .iter()
+            .map(|(c, rate)| {
+                let side = if spec.targets.contains(c) { "R" } else { "L" };
+                bar(format!("{c} ({side})"), rate)
+            })
+            .collect();
+        write_bar_chart(
+            &dir.path().join("packing_by_category.png"),
+            &format!(
+                "Packing success by category (R: {} basket, L: {}; Wilson 95 %)",
+                basket_name(spec.target_basket),
+                basket_name(spec.other_basket)
+            ),
+            "in its true category's basket",
+            &bars,
+            1.05,
+        )?;
+    }
+    if let Some(e) = &r.arrival_evaluation {
+        let (arrival, e) = (&e.arrival, &e.at_end);
+        let mut categories: Vec<(String, bool)> = Vec::new();
+        for l in &e.looks {
+            if !categories.iter().any(|(c, _)| c == &l.category) {
+                categories.push((l.category.clone(), l.early));
+            }
+        }
+        let bars: Vec<Bar> = categories
+            .iter()
+            .map(|(c, early)| {
+                let of: Vec<_> = e.looks.iter().filter(|l| &l.category == c).collect();
+                let rate = lgdm_sim::run::Rate::new(
+                    of.iter().filter(|l| l.category_correct).count(),
+                    of.len(),
+                );
+                bar(
+                    format!("{c} ({})", if *early { "early" } else { "late" }),
+                    &rate,
+                )
+            })
+            .collect();
+        write_bar_chart(
+            &dir.path().join("end_evaluation.png"),
+            &format!(
+                "First guess at the end, replay {} (late categories from round {})",
+                r.recognition
+                    .as_ref()
+                    .map_or("?", |x| if x.config.replay { "on" } else { "off" }),
+                arrival.after_round
+            ),
+            "category accuracy",
+            &bars,
+            1.05,
+        )?;
+    }
+    Ok(())
 }
 
 /// `learning_curve.png` (first-guess accuracy and teacher interventions against objects seen,
