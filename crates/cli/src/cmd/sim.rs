@@ -1,7 +1,7 @@
 //! `lgdm sim`: the tabletop robot (`lgdm_sim`).
 //!
-//! `lgdm sim grasp` plays rounds of a grasp scenario (isolated, packed, pile) with one grasp
-//! source (analytic, random, or network — the grasp autoencoder, loaded once per run from
+//! `lgdm sim grasp` plays rounds of a grasp scenario (isolated, packed, pile, scattered) with one
+//! grasp source (analytic, random, or network — the grasp autoencoder, loaded once per run from
 //! `--ae-checkpoint` or the shipped checkpoint, in a build with the `ae` feature) and writes a run
 //! directory: `results.json` (every attempt, every round, the summary with Wilson 95 %
 //! intervals, the config, wall times apart), `summary.txt`, `success_by_category.png` and
@@ -176,7 +176,7 @@ pub struct GraspArgs {
     /// How the table is set.
     #[arg(long, value_enum, default_value_t = ScenarioArg::Isolated)]
     pub scenario: ScenarioArg,
-    /// Rounds to play (isolated: one object each; packed and pile: 5 objects each).
+    /// Rounds to play (isolated: one object each; packed, pile and scattered: 5 objects each).
     #[arg(long, default_value_t = 10)]
     pub rounds: usize,
     /// Base seed: object poses, clutter draws, the random source and the procedural instances.
@@ -193,8 +193,9 @@ pub struct GraspArgs {
 /// Arguments of `lgdm sim pick-place`.
 #[derive(Debug, ClapArgs)]
 pub struct PickPlaceArgs {
-    /// How the table is set: packed (5 objects pushed together, default) or pile.
-    #[arg(long, value_enum, default_value_t = ScenarioArg::Packed)]
+    /// How the table is set: scattered (5 objects apart at random, the paper's table; default),
+    /// packed (pushed together) or pile.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::Scattered)]
     pub scenario: ScenarioArg,
     /// Rounds to play (5 objects each; default when --attempts is not given either: 10 for
     /// pick-place, 50 for packing).
@@ -690,7 +691,7 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
     let scenario: Scenario = args.scenario.into();
     if scenario == Scenario::Isolated {
         bail!(
-            "--scenario isolated: {} sets 5 objects per round; use packed or pile",
+            "--scenario isolated: {} sets 5 objects per round; use scattered, packed or pile",
             command.trim_start_matches("sim ")
         );
     }
