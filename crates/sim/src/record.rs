@@ -436,17 +436,7 @@ impl Recorder {
     pub(crate) fn grasp_planned(&self, world: &World, shown: &GraspShown<'_>) {
         let mut rec = lock(&self.shared);
         let t = now_ns(world);
-        let entity = grasp_entity(shown, None, t);
-        let ch = rec.channels.grasp;
-        rec.write(
-            ch,
-            t,
-            &SceneUpdate {
-                deletions: Vec::new(),
-                entities: vec![entity],
-            }
-            .encode_to_vec(),
-        );
+        rec.publish_grasp(t, grasp_entity(shown, None, t));
         let g = &shown.plan.grasp;
         rec.log_at(
             t,
@@ -497,17 +487,7 @@ impl Recorder {
         for (camera, shot) in after {
             rec.publish_shot(world, *camera, shot);
         }
-        let entity = grasp_entity(shown, Some(exec), t);
-        let ch = rec.channels.grasp;
-        rec.write(
-            ch,
-            t,
-            &SceneUpdate {
-                deletions: Vec::new(),
-                entities: vec![entity],
-            }
-            .encode_to_vec(),
-        );
+        rec.publish_grasp(t, grasp_entity(shown, Some(exec), t));
         let level = if exec.placement_success {
             LogLevel::Info
         } else {
@@ -614,6 +594,20 @@ impl Recording {
         if let Err(e) = writer.write_to_known_channel(&header, data) {
             self.error = Some(e.to_string());
         }
+    }
+
+    /// The chosen grasp on `/grasp` (one entity, replacing the last).
+    fn publish_grasp(&mut self, t_ns: u64, entity: SceneEntity) {
+        let ch = self.channels.grasp;
+        self.write(
+            ch,
+            t_ns,
+            &SceneUpdate {
+                deletions: Vec::new(),
+                entities: vec![entity],
+            }
+            .encode_to_vec(),
+        );
     }
 
     fn log_at(&mut self, t_ns: u64, level: LogLevel, text: &str) {

@@ -476,20 +476,10 @@ pub fn summary_table(r: &RunResults) -> String {
             cs.placement_success_rate.describe()
         );
     }
-    let failures: Vec<String> = s
-        .failure_reasons
-        .iter()
-        .filter(|(_, n)| **n > 0)
-        .map(|(k, n)| format!("{k} {n}"))
-        .collect();
     let _ = writeln!(
         out,
         "\nfailure reasons: {}",
-        if failures.is_empty() {
-            "none".to_string()
-        } else {
-            failures.join(", ")
-        }
+        failure_list(&s.failure_reasons)
     );
     let w = &r.wall;
     let a = &w.attempts;
@@ -804,6 +794,20 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
     Ok(())
 }
 
+/// The failure reasons that occurred, as `reason n, reason n` (`none` when none did).
+fn failure_list(reasons: &std::collections::BTreeMap<String, usize>) -> String {
+    let failures: Vec<String> = reasons
+        .iter()
+        .filter(|(_, n)| **n > 0)
+        .map(|(k, n)| format!("{k} {n}"))
+        .collect();
+    if failures.is_empty() {
+        "none".to_string()
+    } else {
+        failures.join(", ")
+    }
+}
+
 /// The end of a run on the terminal (not with `--progress jsonl`): the summary table, where the
 /// recorded rounds are, the run directory.
 fn print_end(robot: &RobotArgs, table: &str, recorded: bool) {
@@ -854,20 +858,10 @@ pub fn pick_place_table(r: &RunResults) -> String {
             "objects cleared",
             s.cleared_fraction.describe()
         );
-        let failures: Vec<String> = s
-            .failure_reasons
-            .iter()
-            .filter(|(_, n)| **n > 0)
-            .map(|(k, n)| format!("{k} {n}"))
-            .collect();
         let _ = writeln!(
             out,
             "failures by cause: {}",
-            if failures.is_empty() {
-                "none".to_string()
-            } else {
-                failures.join(", ")
-            }
+            failure_list(&s.failure_reasons)
         );
         let decided: Vec<String> = p
             .decided_by
