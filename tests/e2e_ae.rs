@@ -380,3 +380,85 @@ fn sim_grasp_network_plays_isolated_rounds() {
     assert!(text.contains("no-such.pt"), "{text}");
     assert!(!dir.join("run2").exists());
 }
+
+/// `lgdm sim pick-place --encoder ae`: the robot recognises with the autoencoder's 256-d
+/// features (the pipeline `lgdm features --encoder ae` runs on a dataset's views): the run
+/// records the encoder, saves a 256-d model whose record says `ae`, and a second run starts from
+/// it; that model is refused with `--encoder good`, naming the encoder.
+#[test]
+fn pick_place_recognises_with_the_autoencoder() {
+    let dir = work_dir().join("pick-place");
+    std::fs::create_dir_all(&dir).unwrap();
+    let pick_place = |out: &Path, extra: &[&str]| {
+        lgdm(&dir.join("cache"))
+            .args(["sim", "pick-place", "--seed", "0", "--progress", "none"])
+            .args(["--objects", "5"])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .env("OMP_NUM_THREADS", "1")
+            .output()
+            .unwrap()
+    };
+    let a = dir.join("a");
+    check(
+        pick_place(&a, &["--rounds", "2", "--encoder", "ae"]),
+        "pick-place --encoder ae",
+    );
+    let r = common::read_results(&a);
+    assert_eq!(r["recognition"]["encoder"], "ae");
+    let looks = r["summary"]["recognition_accuracy"]["trials"]
+        .as_u64()
+        .unwrap();
+    assert!(looks >= 2, "{}", r["summary"]);
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("model.json")).unwrap()).unwrap();
+    assert_eq!(model["encoder"], "ae");
+    let gdm = lgdm_gdm::Gdm::load(&a.join("model.lgdm")).unwrap();
+    assert_eq!(gdm.dim(), 256);
+    assert!(gdm.episodic().len() >= 2);
+    // The second round's objects are the first's: the robot was taught them.
+    let known = r["attempts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|x| x.get("recognition"))
+        .filter(|rec| rec["first_look"] == true && rec["guess"]["known"] == true)
+        .count();
+    assert!(known >= 1, "nothing recognised in the second round");
+
+    let model_path = a.join("model.lgdm");
+    let b = dir.join("b");
+    check(
+        pick_place(
+            &b,
+            &[
+                "--rounds",
+                "1",
+                "--encoder",
+                "ae",
+                "--model",
+                model_path.to_str().unwrap(),
+            ],
+        ),
+        "pick-place --encoder ae --model",
+    );
+    let rb = common::read_results(&b);
+    assert_eq!(
+        rb["recognition"]["memory"][0]["episodic_nodes"].as_u64(),
+        Some(gdm.episodic().len() as u64)
+    );
+
+    let c = dir.join("c");
+    let e = pick_place(
+        &c,
+        &["--rounds", "1", "--model", model_path.to_str().unwrap()],
+    );
+    let msg = String::from_utf8_lossy(&e.stderr);
+    assert!(!e.status.success(), "{msg}");
+    assert!(
+        msg.contains("`ae` encoder") && msg.contains("--encoder ae"),
+        "{msg}"
+    );
+    assert!(!c.exists());
+}

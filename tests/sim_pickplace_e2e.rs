@@ -11,7 +11,7 @@
 //! category (a target object packed into the right basket counts; a placement in the wrong basket
 //! is `misrecognised`). With `--arrive-after K` the rounds before K show only the early
 //! categories, the later ones only the rest, and the run ends with the early categories'
-//! first-guess accuracy from fresh views.
+//! first-guess accuracy from fresh views. `--learn-always` learns every object met.
 //!
 //! Run in release (`cargo test --release -p lgdm-cli --test sim_pickplace_e2e`): the physics is
 //! slow in a debug build.
@@ -227,7 +227,78 @@ fn bad_input_is_refused_before_anything_is_written() {
 
     let e = pick_place(&out, &["--rounds", "1", "--scenario", "isolated"]);
     assert!(!e.status.success() && stderr(&e).contains("isolated"));
+
+    // The autoencoder's checkpoint without anything that uses the autoencoder.
+    let e = pick_place(&out, &["--rounds", "1", "--ae-checkpoint", "ae.pt"]);
+    let msg = stderr(&e);
+    assert!(!e.status.success(), "{msg}");
+    assert!(
+        msg.contains("--ae-checkpoint") && msg.contains("--encoder ae"),
+        "{msg}"
+    );
+    // --encoder ae in a build without the autoencoder says how to get one.
+    #[cfg(not(feature = "ae"))]
+    {
+        let e = pick_place(&out, &["--rounds", "1", "--encoder", "ae"]);
+        let msg = stderr(&e);
+        assert!(!e.status.success(), "{msg}");
+        assert!(
+            msg.contains("--encoder ae") && msg.contains("--features ae"),
+            "{msg}"
+        );
+    }
     assert!(!out.exists(), "a refused run wrote {}", out.display());
+}
+
+/// `--learn-always`: the robot learns every object it meets, the ones it knew with its own
+/// labels, so there is a lesson per look while the teacher steps in only for some.
+#[test]
+fn learn_always_learns_every_object_met() {
+    let dir = work_dir();
+    let a = dir.join("learn-always");
+    let out = check(
+        pick_place(
+            &a,
+            &[
+                "--rounds",
+                "3",
+                "--seed",
+                "3",
+                "--objects",
+                "5",
+                "--learn-always",
+            ],
+        ),
+        "pick-place --learn-always",
+    );
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("learns every object"),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let r = read_results(&a);
+    assert_eq!(r["recognition"]["config"]["learn_known"], Value::Bool(true));
+    let looks: Vec<&Value> = r["attempts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|a| a.get("recognition"))
+        .filter(|rec| rec["first_look"] == Value::Bool(true))
+        .collect();
+    assert!(!looks.is_empty());
+    for rec in &looks {
+        assert!(rec["taught_views"].as_u64().unwrap() > 0, "{rec}");
+    }
+    let memory = r["recognition"]["memory"].as_array().unwrap();
+    let last = memory.last().unwrap();
+    assert_eq!(last["lessons"], last["objects_seen"], "{last}");
+    let taught = r["summary"]["teacher_interventions"].as_u64().unwrap();
+    assert!(
+        taught < looks.len() as u64,
+        "the teacher stepped in at every look ({taught} of {}): nothing was known by the third \
+         round",
+        looks.len()
+    );
 }
 
 #[test]

@@ -1,5 +1,10 @@
-//! `lgdm sim grasp --grasp network` (cargo feature `ae`): the grasp autoencoder as a
-//! [`GraspSource`]. [`NetworkSource`] loads the checkpoint once per run
+//! The grasp autoencoder in the robot (cargo feature `ae`): as a [`GraspSource`] for
+//! `lgdm sim grasp|pick-place --grasp network`, and as the recognition's [`ViewEncoder`] for
+//! `lgdm sim pick-place --encoder ae` ([`AeViewEncoder`]: each view through
+//! `lgdm_pybridge::ae::view_features`, the pipeline `lgdm features --encoder ae` runs on a
+//! dataset's views, so a model `lgdm train --encoder ae` made recognises the robot's objects).
+//!
+//! The grasp source: [`NetworkSource`] loads the checkpoint once per run
 //! (`lgdm_pybridge::ae::AutoEncoder`: embedded Python, the venv's numpy, torch and train_ae)
 //! and answers each object-centred crop with `AutoEncoder::crop_grasps` — the crop resized to
 //! the model's input, one inference, the quality / angle / width maps decoded by the Rust
@@ -18,8 +23,12 @@
 
 use std::path::{Path, PathBuf};
 
+use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
-use lgdm_pybridge::ae::{AeError, AutoEncoder};
+use lgdm_pointcloud::render::{Camera, RgbdFrame};
+use lgdm_pybridge::ae::views::table_frame;
+use lgdm_pybridge::ae::{AeError, AutoEncoder, FEATURE_DIM, view_features};
+use lgdm_sim::recognize::ViewEncoder;
 use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
 
 /// The grasp autoencoder behind [`GraspSource`] (`network`).
@@ -73,5 +82,53 @@ impl GraspSource for NetworkSource {
             self.checkpoint.display(),
             self.model.input_size()
         )
+    }
+}
+
+/// The autoencoder's 256-d feature of each view, for the robot's recognition.
+#[derive(Debug)]
+pub struct AeViewEncoder {
+    model: AutoEncoder,
+    /// The table as the views' camera sees it (the background each view is drawn over).
+    table: Option<(Camera, RgbdFrame)>,
+}
+
+impl AeViewEncoder {
+    /// The encoder's name, as `--encoder` spells it and `lgdm train` records it.
+    pub const NAME: &'static str = "ae";
+
+    /// Loads `checkpoint` (see [`NetworkSource::load`]).
+    pub fn load(checkpoint: &Path) -> Result<AeViewEncoder, AeError> {
+        Ok(AeViewEncoder {
+            model: AutoEncoder::load(checkpoint)?,
+            table: None,
+        })
+    }
+}
+
+impl ViewEncoder for AeViewEncoder {
+    fn name(&self) -> &str {
+        Self::NAME
+    }
+
+    fn dim(&self) -> usize {
+        FEATURE_DIM
+    }
+
+    fn encode(
+        &mut self,
+        views: &[PointCloud],
+        camera: &Camera,
+    ) -> Result<Vec<Option<Vec<f32>>>, String> {
+        if views.is_empty() {
+            return Ok(Vec::new());
+        }
+        if self.table.as_ref().is_none_or(|(c, _)| c != camera) {
+            self.table = Some((*camera, table_frame(camera)));
+        }
+        let (_, table) = self.table.as_ref().expect("set above");
+        view_features(&self.model, views, camera, table)
+            .map(|rows| rows.into_iter().map(Some).collect())
+            .map_err(|e| e.to_string())
     }
 }

@@ -17,9 +17,13 @@
 //!
 //! **Features: the dataset's code.** Each view goes through
 //! [`lgdm_pointcloud::dataset::view_cloud`] (the object's pixels back-projected into the camera's
-//! optical frame, subsampled to 2,048 points — what `lgdm gen-dataset` stores per frame) and
-//! [`lgdm_pointcloud::good::good_descriptor`] with [`GOOD_BINS`] bins (what `lgdm features` /
-//! `train` / `eval` compute per stored frame): 675 values.
+//! optical frame, subsampled to 2,048 points — what `lgdm gen-dataset` stores per frame) and a
+//! [`ViewEncoder`]: [`GoodEncoder`] by default, [`lgdm_pointcloud::good::good_descriptor`] with
+//! [`GOOD_BINS`] bins (what `lgdm features` / `train` / `eval` compute per stored frame: 675
+//! values); the command line's `ae` build adds the autoencoder's (`--encoder ae`: the cloud
+//! splatted over the table as the dataset's camera sees it, the object-centred crop, 256 values —
+//! `lgdm features --encoder ae`'s pipeline). A model is only used with the encoder it was
+//! trained with (its feature dimension is checked here, its run record by the command line).
 //!
 //! **Labels.** Ids are the dataset's ([`lgdm_pointcloud::dataset::label_ids`]): category id =
 //! index of the category name in order of first appearance, instance id = index of the object.
@@ -38,7 +42,8 @@
 //! teacher names the true category and instance; the robot gathers
 //! [`RecognitionConfig::teach_views`] views (a full orbit) and learns them as one labelled
 //! sequence: [`Gdm::train`] [`RecognitionConfig::teach_epochs`] times, then [`Gdm::end_episode`],
-//! the calls `lgdm train` makes per step. [`Recognizer::end_round`] replays ([`Gdm::replay`])
+//! the calls `lgdm train` makes per step. With [`RecognitionConfig::learn_known`] it learns the
+//! objects it knew as well, with its own (right) labels. [`Recognizer::end_round`] replays ([`Gdm::replay`])
 //! after each round unless [`RecognitionConfig::replay`] is off.
 //!
 //! ```
@@ -64,8 +69,52 @@ use crate::attempt::{WallTimes, Work};
 use crate::camera::{CameraError, LABEL_FIRST_OBJECT, ObjectDrawing, render_world};
 use crate::world::{ObjectHandle, World, WorldError};
 
-/// The encoder the robot recognises with: GOOD ([`GOOD_BINS`] bins, [`GOOD_DIM`] values).
+/// The default encoder's name: GOOD ([`GOOD_BINS`] bins, [`GOOD_DIM`] values).
 pub const ENCODER: &str = "good";
+
+/// What turns the robot's views into the dual memory's input: the dataset path's encoder, so a
+/// model `lgdm train` made with it recognises the robot's objects. [`GoodEncoder`] here; the
+/// autoencoder's (`--encoder ae`) lives with the torch bridge, in the command line's `ae` build.
+pub trait ViewEncoder: std::fmt::Debug {
+    /// The name runs record (`lgdm train --encoder NAME`): `good`, `ae`.
+    fn name(&self) -> &str;
+    /// Values per feature.
+    fn dim(&self) -> usize;
+    /// One feature per view (a cloud in `camera`'s optical frame, as
+    /// [`lgdm_pointcloud::dataset::view_cloud`] makes it and `lgdm gen-dataset` stores it;
+    /// `camera` is the dataset's camera, [`CameraSpec::camera`]); `None` for a view it cannot
+    /// describe.
+    fn encode(
+        &mut self,
+        views: &[lgdm_pointcloud::PointCloud],
+        camera: &lgdm_pointcloud::render::Camera,
+    ) -> Result<Vec<Option<Vec<f32>>>, String>;
+}
+
+/// GOOD with [`GOOD_BINS`] bins: what `lgdm features` computes per stored view.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GoodEncoder;
+
+impl ViewEncoder for GoodEncoder {
+    fn name(&self) -> &str {
+        ENCODER
+    }
+
+    fn dim(&self) -> usize {
+        GOOD_DIM
+    }
+
+    fn encode(
+        &mut self,
+        views: &[lgdm_pointcloud::PointCloud],
+        _camera: &lgdm_pointcloud::render::Camera,
+    ) -> Result<Vec<Option<Vec<f32>>>, String> {
+        Ok(views
+            .iter()
+            .map(|cloud| good_descriptor(&cloud.points, GOOD_BINS).ok())
+            .collect())
+    }
+}
 
 /// Seed tag of the view subsampling stream.
 const TAG_VIEWS: u64 = 0x5133_0010;
@@ -93,6 +142,9 @@ pub struct RecognitionConfig {
     pub teach_epochs: usize,
     /// Intrinsic replay after each round (default true).
     pub replay: bool,
+    /// Learn every object met, also the ones the robot knew (its own, right, labels; default
+    /// false: only the teacher's lessons). More learning in the loop, hence more to forget.
+    pub learn_known: bool,
     /// What the views draw (default `mesh`, what the dataset draws).
     pub draw: ObjectDrawing,
 }
@@ -109,6 +161,7 @@ impl Default for RecognitionConfig {
             confidence_threshold: 0.6,
             teach_epochs: 3,
             replay: true,
+            learn_known: false,
             draw: ObjectDrawing::Mesh,
         }
     }
@@ -175,13 +228,24 @@ pub enum RecognitionError {
     },
     /// The model does not take the encoder's features.
     #[error(
-        "the model expects {model}-d features but the {ENCODER} encoder gives {encoder}-d: was it trained with another encoder?"
+        "the model expects {model}-d features but the {name} encoder gives {encoder}-d: was it \
+         trained with another encoder?"
     )]
     Dimension {
         /// The model's input dimension.
         model: usize,
-        /// The encoder's.
+        /// The encoder's name.
+        name: String,
+        /// The encoder's dimension.
         encoder: usize,
+    },
+    /// The encoder failed on the views.
+    #[error("the {name} encoder: {message}")]
+    Encoder {
+        /// The encoder's name.
+        name: String,
+        /// What went wrong.
+        message: String,
     },
     /// The dual memory failed.
     #[error("dual memory: {0}")]
@@ -282,7 +346,8 @@ pub struct RecognitionRecord {
     pub instance_correct: bool,
     /// The teacher stepped in (not known, or a wrong category or instance).
     pub teacher: bool,
-    /// Views learnt from the lesson (0 without one).
+    /// Views learnt after this look: the teacher's lesson, or with
+    /// [`RecognitionConfig::learn_known`] the robot's own (0 when nothing was learnt).
     pub taught_views: usize,
     /// Whether this attempt made the recognition (false: the object was recognised at an earlier
     /// attempt of the round, whose record this repeats).
@@ -308,6 +373,7 @@ pub struct MemoryPoint {
 #[derive(Debug)]
 pub struct Recognizer {
     config: RecognitionConfig,
+    encoder: Box<dyn ViewEncoder>,
     gdm: Gdm,
     labels: Labels,
     rng: ChaCha8Rng,
@@ -319,25 +385,39 @@ pub struct Recognizer {
 }
 
 impl Recognizer {
-    /// Recognition with `gdm` (e.g. loaded from `lgdm train`'s checkpoint) whose ids mean
-    /// `labels`; the views' subsampling is seeded from `seed`. A model of another feature
-    /// dimension than [`GOOD_DIM`] is refused.
+    /// Recognition with GOOD ([`GoodEncoder`]) and `gdm` (e.g. loaded from `lgdm train`'s
+    /// checkpoint) whose ids mean `labels`; the views' subsampling is seeded from `seed`. A model
+    /// of another feature dimension than [`GOOD_DIM`] is refused.
     pub fn new(
         config: RecognitionConfig,
         gdm: Gdm,
         labels: Labels,
         seed: u64,
     ) -> Result<Self, RecognitionError> {
+        Self::with_encoder(config, Box::new(GoodEncoder), gdm, labels, seed)
+    }
+
+    /// [`Recognizer::new`] with `encoder`; a model of another feature dimension than the
+    /// encoder's is refused.
+    pub fn with_encoder(
+        config: RecognitionConfig,
+        encoder: Box<dyn ViewEncoder>,
+        gdm: Gdm,
+        labels: Labels,
+        seed: u64,
+    ) -> Result<Self, RecognitionError> {
         config.validate()?;
-        if gdm.dim() != GOOD_DIM {
+        if gdm.dim() != encoder.dim() {
             return Err(RecognitionError::Dimension {
                 model: gdm.dim(),
-                encoder: GOOD_DIM,
+                name: encoder.name().to_string(),
+                encoder: encoder.dim(),
             });
         }
         let next_sequence = gdm.current_sequence().map_or(0, |s| s.wrapping_add(1));
         Ok(Self {
             config,
+            encoder,
             gdm,
             labels,
             rng: ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_VIEWS, 0, 0)),
@@ -349,10 +429,20 @@ impl Recognizer {
         })
     }
 
-    /// Recognition from an empty model (the paper's incremental hyperparameters, seeded with
-    /// `seed`).
+    /// Recognition with GOOD from an empty model (the paper's incremental hyperparameters,
+    /// seeded with `seed`).
     pub fn empty(
         config: RecognitionConfig,
+        labels: Labels,
+        seed: u64,
+    ) -> Result<Self, RecognitionError> {
+        Self::empty_with_encoder(config, Box::new(GoodEncoder), labels, seed)
+    }
+
+    /// [`Recognizer::empty`] with `encoder`.
+    pub fn empty_with_encoder(
+        config: RecognitionConfig,
+        encoder: Box<dyn ViewEncoder>,
         labels: Labels,
         seed: u64,
     ) -> Result<Self, RecognitionError> {
@@ -360,8 +450,13 @@ impl Recognizer {
             seed,
             ..GdmConfig::paper_incremental()
         };
-        let gdm = Gdm::new(gdm_config, GOOD_DIM)?;
-        Ok(Self::new(config, gdm, labels, seed)?.with_origin("empty"))
+        let gdm = Gdm::new(gdm_config, encoder.dim())?;
+        Ok(Self::with_encoder(config, encoder, gdm, labels, seed)?.with_origin("empty"))
+    }
+
+    /// The encoder's name (`good`, `ae`).
+    pub fn encoder_name(&self) -> &str {
+        self.encoder.name()
     }
 
     /// Names where the model came from (`empty`, a checkpoint's path), for the run's record.
@@ -407,7 +502,7 @@ impl Recognizer {
         s
     }
 
-    /// GOOD features of `count` views of `object` from azimuths `k × view_step_rad`,
+    /// The encoder's features of `count` views of `object` from azimuths `k × view_step_rad`,
     /// k = 0, 1, …; views showing fewer than `min_points` of its points are skipped.
     pub fn views(
         &mut self,
@@ -422,7 +517,7 @@ impl Recognizer {
             pose.translation.y,
             world.config().table.top_z_m(),
         ];
-        let mut out = Vec::with_capacity(count);
+        let mut clouds = Vec::with_capacity(count);
         for k in 0..count {
             let camera = self
                 .config
@@ -437,15 +532,27 @@ impl Recognizer {
             let label = LABEL_FIRST_OBJECT + index as u8;
             let max_points = self.config.max_points_per_view;
             let rng = &mut self.rng;
-            let features = wall.time(Work::Recognition, || {
-                let cloud = view_cloud(&shot.frame, &shot.camera, label, max_points, rng);
-                (cloud.len() >= self.config.min_points)
-                    .then(|| good_descriptor(&cloud.points, GOOD_BINS).ok())
-                    .flatten()
+            let cloud = wall.time(Work::Recognition, || {
+                view_cloud(&shot.frame, &shot.camera, label, max_points, rng)
             });
-            out.extend(features);
+            if cloud.len() >= self.config.min_points {
+                clouds.push(cloud);
+            }
         }
-        Ok(out)
+        if clouds.is_empty() {
+            return Ok(Vec::new());
+        }
+        // The views' clouds are in the optical frame of a camera placed around the object as the
+        // dataset's camera is around the turntable's centre: to the encoder they are views of
+        // the dataset's camera.
+        let camera = self.config.camera.camera();
+        let encoder = &mut self.encoder;
+        let features = wall.time(Work::Recognition, || encoder.encode(&clouds, &camera));
+        let features = features.map_err(|message| RecognitionError::Encoder {
+            name: self.encoder.name().to_string(),
+            message,
+        })?;
+        Ok(features.into_iter().flatten().collect())
     }
 
     /// The first guess about `object` from [`RecognitionConfig::look_views`] views.
@@ -500,7 +607,8 @@ impl Recognizer {
         })
     }
 
-    /// The teacher's lesson: `object` is instance `instance` of `category`. Gathers
+    /// A lesson (the teacher's, or the robot's own with [`RecognitionConfig::learn_known`]):
+    /// `object` is instance `instance` of `category`. Gathers
     /// [`RecognitionConfig::teach_views`] views and learns them (train × `teach_epochs`, episode
     /// end). Returns the number of views learnt.
     pub fn teach(
@@ -545,7 +653,7 @@ impl Recognizer {
         let category_correct = guess.known && guess.category.as_deref() == Some(true_category);
         let instance_correct = guess.known && guess.instance.as_deref() == Some(true_instance);
         let teacher = !(category_correct && instance_correct);
-        let taught_views = if teacher {
+        let taught_views = if teacher || self.config.learn_known {
             self.teach(world, object, true_category, true_instance, wall)?
         } else {
             0

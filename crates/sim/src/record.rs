@@ -23,7 +23,8 @@
 //! | `/camera/{overview,closeup,basket}/rgb` | `foxglove.RawImage` | `rgb8` |
 //! | `/camera/{overview,closeup,basket}/depth` | `foxglove.RawImage` | `32FC1`, optical z in metres, 0 where nothing was hit |
 //! | `/camera/{overview,closeup,basket}/calibration` | `foxglove.CameraCalibration` | pinhole (`plumb_bob`, no distortion) |
-//! | `/events` | `foxglove.Log` | round start and end, attempt start and end with the success flags and the failure reason |
+//! | `/events` | `foxglove.Log` | round start and end, attempt start and end with the success flags and the failure reason; recognitions and the teacher's lessons (pick-and-place) |
+//! | `/labels` | `foxglove.SceneUpdate` | pick-and-place: entity `label/<object frame>`, `frame_locked` in the object's frame, a billboard text above it (true instance, the robot's first guess and confidence, the teacher's part), green when the robot knew it, amber when it did not know, red when it was wrong; metadata with the same fields; deleted when the object goes |
 //!
 //! The file also holds an MCAP metadata record `lgdm.round` (round, scenario, grasp source,
 //! seed, objects).
@@ -83,6 +84,8 @@ pub const TOPIC_SCENE: &str = "/scene";
 pub const TOPIC_GRASP: &str = "/grasp";
 /// The `/events` topic.
 pub const TOPIC_EVENTS: &str = "/events";
+/// The `/labels` topic.
+pub const TOPIC_LABELS: &str = "/labels";
 /// The root frame of every transform.
 pub const WORLD_FRAME: &str = "world";
 
@@ -228,6 +231,7 @@ struct Channels {
     scene: u16,
     grasp: u16,
     events: u16,
+    labels: u16,
     /// Per camera: rgb, depth, calibration.
     cameras: [[u16; 3]; 3],
 }
@@ -262,6 +266,8 @@ struct Recording {
     round: usize,
     bodies: Vec<BodyFrame>,
     objects: Vec<ObjectFrame>,
+    /// Object frames with a label on `/labels`.
+    labelled: Vec<String>,
     scenery: Vec<ColliderHandle>,
     /// The latest overview frame (the storyboard's "before").
     overview: Option<SceneFrame>,
@@ -347,6 +353,7 @@ impl Recorder {
         let scene = channel(scene_schema, TOPIC_SCENE)?;
         let grasp = channel(scene_schema, TOPIC_GRASP)?;
         let events = channel(log_schema, TOPIC_EVENTS)?;
+        let labels = channel(scene_schema, TOPIC_LABELS)?;
         let mut cameras = [[0u16; 3]; 3];
         for camera in RecordCamera::ALL {
             let name = camera.name();
@@ -372,6 +379,7 @@ impl Recorder {
                 scene,
                 grasp,
                 events,
+                labels,
                 cameras,
             },
             sequences: BTreeMap::new(),
@@ -380,6 +388,7 @@ impl Recorder {
             round,
             bodies: Vec::new(),
             objects: Vec::new(),
+            labelled: Vec::new(),
             scenery: Vec::new(),
             overview: None,
             pending: None,
@@ -516,6 +525,43 @@ impl Recorder {
         });
         row.caption = caption;
         rec.rows.push(row);
+    }
+
+    /// Shows `label` above `object` on `/labels` (replacing its earlier label), in the object's
+    /// frame so that it travels with it; nothing when the object is gone.
+    pub fn label_object(&self, world: &World, object: ObjectHandle, label: &ObjectLabel) {
+        let mut rec = lock(&self.shared);
+        let t = now_ns(world);
+        rec.sync_scene(world, t);
+        let Some(frame) = rec
+            .objects
+            .iter()
+            .find(|o| o.handle == object)
+            .map(|o| o.frame.clone())
+        else {
+            return;
+        };
+        // Above the object's top, whichever way it stands.
+        let top = world.object_collider_mesh(object).map_or(0.1, |m| {
+            m.vertices
+                .iter()
+                .map(|v| f64::from(v[2]))
+                .fold(0.0, f64::max)
+        });
+        let entity = label_entity(&frame, top + 0.06, label, t);
+        if !rec.labelled.contains(&frame) {
+            rec.labelled.push(frame);
+        }
+        let ch = rec.channels.labels;
+        rec.write(
+            ch,
+            t,
+            &SceneUpdate {
+                deletions: Vec::new(),
+                entities: vec![entity],
+            }
+            .encode_to_vec(),
+        );
     }
 
     /// Publishes an event on `/events`.
@@ -661,12 +707,25 @@ impl Recording {
         let (kept, gone): (Vec<ObjectFrame>, Vec<ObjectFrame>) = std::mem::take(&mut self.objects)
             .into_iter()
             .partition(|o| live.contains(&o.handle));
+        let mut labels_gone = SceneUpdate::default();
         for o in gone {
+            if let Some(i) = self.labelled.iter().position(|f| *f == o.frame) {
+                self.labelled.remove(i);
+                labels_gone.deletions.push(SceneEntityDeletion {
+                    timestamp: Some(foxglove_timestamp(t)),
+                    r#type: 0,
+                    id: label_id(&o.frame),
+                });
+            }
             update.deletions.push(SceneEntityDeletion {
                 timestamp: Some(foxglove_timestamp(t)),
                 r#type: 0,
                 id: o.frame,
             });
+        }
+        if !labels_gone.deletions.is_empty() {
+            let ch = self.channels.labels;
+            self.write(ch, t, &labels_gone.encode_to_vec());
         }
         self.objects = kept;
         for h in live {
@@ -936,6 +995,58 @@ fn scenery_entity(world: &World, scenery: &[ColliderHandle], t_ns: u64) -> Scene
             color: Some(rgb8(if is_table { TABLE_RGB } else { BASKET_RGB })),
         });
     }
+    e
+}
+
+/// What the robot made of an object, shown above it on `/labels`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectLabel {
+    /// The text (lines separated by `\n`).
+    pub text: String,
+    /// How the recognition went (the colour).
+    pub tone: LabelTone,
+    /// Key–value pairs for the entity's metadata (true labels, guess, confidence, teacher).
+    pub metadata: Vec<(&'static str, String)>,
+}
+
+/// How a recognition went, as a label's colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LabelTone {
+    /// The robot knew the object (green).
+    Right,
+    /// The robot said it did not know (amber): the teacher taught it.
+    Unknown,
+    /// The robot was sure and wrong (red): the teacher corrected it.
+    Wrong,
+}
+
+impl LabelTone {
+    fn rgba(self) -> [f64; 4] {
+        match self {
+            Self::Right => [0.2, 0.8, 0.3, 1.0],
+            Self::Unknown => [1.0, 0.7, 0.1, 1.0],
+            Self::Wrong => [0.9, 0.2, 0.2, 1.0],
+        }
+    }
+}
+
+/// The `/labels` entity id of the object in `frame`.
+fn label_id(frame: &str) -> String {
+    format!("label/{frame}")
+}
+
+/// A billboard text `height_m` above the origin of the object `frame`.
+fn label_entity(frame: &str, height_m: f64, label: &ObjectLabel, t_ns: u64) -> SceneEntity {
+    let mut e = entity(frame, &label_id(frame), t_ns);
+    e.metadata = metadata(&label.metadata);
+    e.texts.push(TextPrimitive {
+        pose: Some(isometry_pose(&Isometry3::translation(0.0, 0.0, height_m))),
+        billboard: true,
+        font_size: 14.0,
+        scale_invariant: true,
+        color: Some(color(label.tone.rgba())),
+        text: label.text.clone(),
+    });
     e
 }
 

@@ -57,12 +57,11 @@ use crate::camera::CameraConfig;
 use crate::packing::{PackingError, PackingRecord, PackingSpec, PackingSummary};
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
 use crate::recognize::{
-    ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionError, RecognitionRecord,
-    Recognizer,
+    Labels, MemoryPoint, RecognitionConfig, RecognitionError, RecognitionRecord, Recognizer,
 };
 use crate::record::{
-    GraspShown, RecordCamera, RecordConfig, RecordError, Recorder, RoundRecording, RoundSink,
-    basket_camera,
+    GraspShown, LabelTone, ObjectLabel, RecordCamera, RecordConfig, RecordError, Recorder,
+    RoundRecording, RoundSink, basket_camera,
 };
 use crate::robot::RobotConfig;
 use crate::scenario::{
@@ -631,7 +630,7 @@ pub struct RunResults {
 /// The recognition side of a pick-and-place run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecognitionRun {
-    /// The feature encoder ([`ENCODER`]).
+    /// The feature encoder (`good`, `ae`).
     pub encoder: String,
     /// The model the run started from (`empty`, or the checkpoint given).
     pub start_model: String,
@@ -900,6 +899,7 @@ impl<F: FnMut(&RunProgress)> Runner<'_, F> {
                 crate::record::LogLevel::Info,
                 &recognition_caption(&record),
             );
+            r.label_object(&cell.world, h, &recognition_label(&record));
         }
         self.recognised.push((h, record.clone()));
         self.pending_recognition = Some(record);
@@ -1437,7 +1437,7 @@ fn play<'a>(
     };
     evaluation_s += evaluation_start.elapsed().as_secs_f64();
     let recognition = runner.recognizer.as_deref().map(|r| RecognitionRun {
-        encoder: ENCODER.to_string(),
+        encoder: r.encoder_name().to_string(),
         start_model: r.origin().to_string(),
         config: r.config().clone(),
         labels: r.labels().clone(),
@@ -1586,6 +1586,45 @@ fn recognition_caption(r: &RecognitionRecord) -> String {
         "recognition of {} ({}): {guess}{teacher}",
         r.true_instance, r.true_category
     )
+}
+
+/// A recognition as the label above the object on `/labels`: the true instance, the first
+/// guess with its confidence, and the teacher's part.
+fn recognition_label(r: &RecognitionRecord) -> ObjectLabel {
+    let g = &r.guess;
+    let guess = match (&g.category, &g.instance) {
+        (Some(c), i) if g.known => format!(
+            "{c}/{} {:.0} %",
+            i.as_deref().unwrap_or("?"),
+            100.0 * g.confidence
+        ),
+        _ => "I don't know this".to_string(),
+    };
+    let mut text = format!("{}\n{guess}", r.true_instance);
+    if r.teacher {
+        text.push_str(&format!(
+            "\nteacher: {}/{}",
+            r.true_category, r.true_instance
+        ));
+    }
+    let tone = match (g.known, r.teacher) {
+        (false, _) => LabelTone::Unknown,
+        (true, true) => LabelTone::Wrong,
+        (true, false) => LabelTone::Right,
+    };
+    ObjectLabel {
+        text,
+        tone,
+        metadata: vec![
+            ("true_category", r.true_category.clone()),
+            ("true_instance", r.true_instance.clone()),
+            ("guess_category", g.category.clone().unwrap_or_default()),
+            ("guess_instance", g.instance.clone().unwrap_or_default()),
+            ("confidence", format!("{:.3}", g.confidence)),
+            ("known", g.known.to_string()),
+            ("teacher", r.teacher.to_string()),
+        ],
+    }
 }
 
 /// How a round ended, for its recording: `cleared, placed 1 of 1`.

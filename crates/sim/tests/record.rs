@@ -296,3 +296,87 @@ fn first_rounds_limits_what_is_recorded() {
         run_trials_recorded(&spec, &library, source.as_mut(), |_| {}, &bad, &mut sink).unwrap_err();
     assert!(err.to_string().contains("tf_rate_hz"), "{err}");
 }
+
+/// A pick-and-place recording shows what the robot made of each object: a label on `/labels`
+/// in the object's frame (so it travels with it), coloured by how recognition went, with the
+/// true and guessed labels as metadata, deleted when the object goes.
+#[test]
+fn pick_place_recordings_label_every_recognised_object() {
+    use lgdm_sim::recognize::{Labels, RecognitionConfig, Recognizer};
+    let library = library();
+    let spec = RunSpec::new(Scenario::Isolated, 3, 0);
+    let mut source = builtin_source("analytic", 0).unwrap();
+    let mut recognizer = Recognizer::empty(
+        RecognitionConfig::default(),
+        Labels::of_objects(&library),
+        0,
+    )
+    .unwrap();
+    let mut sink: Vec<RoundRecording> = Vec::new();
+    let config = RecordConfig::default();
+    let results = lgdm_sim::run::run_pick_place(
+        &spec,
+        &library,
+        source.as_mut(),
+        &mut recognizer,
+        |_| {},
+        Some((&config, &mut sink)),
+    )
+    .unwrap();
+    assert_eq!(sink.len(), 3);
+    let mut labels_seen = 0;
+    for (recording, round) in sink.iter().zip(&results.rounds) {
+        let rows = messages(&recording.mcap);
+        let updates: Vec<SceneUpdate> = on(&rows, "/labels")
+            .iter()
+            .map(|r| {
+                assert_eq!(r.1, "foxglove.SceneUpdate");
+                SceneUpdate::decode(r.6.as_slice()).unwrap()
+            })
+            .collect();
+        let object = format!("object/{}", round.objects[0]);
+        let recognition = results
+            .attempts
+            .iter()
+            .filter(|a| a.round == round.round)
+            .find_map(|a| a.recognition.clone())
+            .expect("the round's object was recognised");
+        let label = updates
+            .iter()
+            .flat_map(|u| u.entities.iter())
+            .find(|e| e.id == format!("label/{object}"))
+            .unwrap_or_else(|| panic!("no label for {object}: {updates:?}"));
+        labels_seen += 1;
+        assert!(label.frame_locked && label.frame_id == object);
+        let text = &label.texts[0];
+        assert!(text.billboard && text.text.starts_with(&recognition.true_instance));
+        let meta: BTreeMap<&str, &str> = label
+            .metadata
+            .iter()
+            .map(|kv| (kv.key.as_str(), kv.value.as_str()))
+            .collect();
+        assert_eq!(meta["true_instance"], recognition.true_instance);
+        assert_eq!(meta["teacher"], recognition.teacher.to_string());
+        assert_eq!(meta["known"], recognition.guess.known.to_string());
+        // Amber for "I don't know this" (the first round, from an empty model), green when known
+        // and right.
+        let color = text.color.as_ref().unwrap();
+        match (recognition.guess.known, recognition.teacher) {
+            (false, _) => assert!(color.r > 0.9 && color.g > 0.5 && color.b < 0.2, "{color:?}"),
+            (true, false) => assert!(color.g > 0.7 && color.r < 0.3, "{color:?}"),
+            (true, true) => assert!(color.r > 0.8 && color.g < 0.3, "{color:?}"),
+        }
+        if round.round == 0 {
+            assert!(!recognition.guess.known && text.text.contains("I don't know this"));
+        }
+        // A placed object leaves the table, and its label with it.
+        if round.placed > 0 {
+            let deleted = updates
+                .iter()
+                .flat_map(|u| u.deletions.iter())
+                .any(|d| d.id == label.id);
+            assert!(deleted, "{} not deleted", label.id);
+        }
+    }
+    assert_eq!(labels_seen, 3);
+}

@@ -37,7 +37,7 @@ use lgdm_sim::arrival::Arrival;
 use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::packing::{PackingSpec, basket_name, known_categories};
 use lgdm_sim::recognize::{
-    ENCODER, Labels, MemoryPoint, RecognitionConfig, RecognitionRecord, Recognizer,
+    GoodEncoder, Labels, MemoryPoint, RecognitionConfig, RecognitionRecord, Recognizer, ViewEncoder,
 };
 use lgdm_sim::record::RecordConfig;
 use lgdm_sim::run::{
@@ -48,6 +48,7 @@ use lgdm_sim::scenario::{Scenario, check_library, interleaved_order};
 use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::GraspSource;
 
+use crate::data::Encoder;
 use crate::plot::{Bar, write_bar_chart, write_lines};
 use crate::progress::{ProgressMode, Reporter};
 
@@ -164,8 +165,8 @@ pub struct RobotArgs {
     /// How to show progress.
     #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
     pub progress: ProgressMode,
-    /// The grasp network's checkpoint for --grasp network (default: the one shipped with
-    /// train_ae, `weights/cpu.pt`).
+    /// The autoencoder's checkpoint for --grasp network and pick-place's --encoder ae
+    /// (default: the one shipped with train_ae, `weights/cpu.pt`).
     #[arg(long, value_name = "PATH")]
     pub ae_checkpoint: Option<PathBuf>,
 }
@@ -222,6 +223,14 @@ pub struct PickPlaceArgs {
     /// No intrinsic replay after each round.
     #[arg(long)]
     pub no_replay: bool,
+    /// Learn every object met, also the ones the robot knew (its own labels), not only the
+    /// teacher's lessons: more learning in the loop, hence more that could be forgotten.
+    #[arg(long)]
+    pub learn_always: bool,
+    /// The features recognition uses: good (GOOD, 675 values) or ae (the grasp autoencoder's
+    /// 256-d feature; an `ae` build). A --model must have been trained with the same encoder.
+    #[arg(long, value_enum, default_value_t = Encoder::Good)]
+    pub encoder: Encoder,
     /// Below this share of agreeing views the robot says "I don't know this" (0..=1).
     #[arg(long, default_value_t = 0.6)]
     pub confidence: f64,
@@ -271,12 +280,27 @@ and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && 
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
 LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
 
-/// The grasp source of `args`, loaded once for the whole run.
-fn source(args: &RobotArgs, seed: u64, reporter: &Reporter) -> Result<Box<dyn GraspSource>> {
-    if let (Some(p), false) = (&args.ae_checkpoint, args.grasp == GraspArg::Network) {
+/// The grasp source of `args`, loaded once for the whole run. `ae_encoder`: whether
+/// recognition uses the autoencoder (then `--ae-checkpoint` applies without `--grasp
+/// network`); `None` for commands without recognition.
+fn source(
+    args: &RobotArgs,
+    seed: u64,
+    ae_encoder: Option<bool>,
+    reporter: &Reporter,
+) -> Result<Box<dyn GraspSource>> {
+    if let (Some(p), false) = (
+        &args.ae_checkpoint,
+        args.grasp == GraspArg::Network || ae_encoder == Some(true),
+    ) {
         bail!(
-            "--ae-checkpoint {} only applies to --grasp network",
-            p.display()
+            "--ae-checkpoint {} only applies to --grasp network{}",
+            p.display(),
+            if ae_encoder.is_some() {
+                " and --encoder ae"
+            } else {
+                ""
+            }
         );
     }
     match args.grasp {
@@ -356,7 +380,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
         bail!("--rounds 0: at least one round is needed");
     }
     let robot = &args.robot;
-    let mut source = source(robot, args.seed, &reporter)?;
+    let mut source = source(robot, args.seed, None, &reporter)?;
     let (objects, objects_label) = library(robot, args.instances, args.seed, &reporter)?;
     let spec = run_spec(
         robot,
@@ -492,7 +516,8 @@ pub fn summary_table(r: &RunResults) -> String {
     };
     let _ = writeln!(
         out,
-        "wall time {:.1} s, {:.3} s per attempt (physics {:.0} %, rendering {:.0} %, perception {:.0} %, grasp source {:.0} %, planning {:.0} %), {:.0}× real time",
+        "wall time {:.1} s, {:.3} s per attempt (physics {:.0} %, rendering {:.0} %, perception \
+         {:.0} %, grasp source {:.0} %, planning {:.0} %), {:.0}× real time",
         w.total_s,
         w.per_attempt_s,
         pct(a.physics_s),
@@ -584,8 +609,43 @@ fn model_record(model: &std::path::Path) -> Result<Option<(PathBuf, ModelRecord)
     Ok(None)
 }
 
-/// The recognizer: `--model` (checked: its feature dimension and encoder against GOOD's) with
-/// the label names of its run, else an empty model with the dataset's ids of `library`.
+/// The view encoder of `--encoder`.
+fn view_encoder(args: &PickPlaceArgs, reporter: &Reporter) -> Result<Box<dyn ViewEncoder>> {
+    match args.encoder {
+        Encoder::Good => Ok(Box::new(GoodEncoder)),
+        Encoder::Ae => ae_view_encoder(args.robot.ae_checkpoint.as_deref(), reporter),
+    }
+}
+
+#[cfg(not(feature = "ae"))]
+fn ae_view_encoder(
+    _checkpoint: Option<&std::path::Path>,
+    _reporter: &Reporter,
+) -> Result<Box<dyn ViewEncoder>> {
+    bail!(crate::data::ae::NOT_BUILT)
+}
+
+/// The autoencoder as recognition's encoder ([`crate::network::AeViewEncoder`]).
+#[cfg(feature = "ae")]
+fn ae_view_encoder(
+    checkpoint: Option<&std::path::Path>,
+    reporter: &Reporter,
+) -> Result<Box<dyn ViewEncoder>> {
+    use crate::data::ae::{bridge_error, resolve_checkpoint};
+    use crate::network::AeViewEncoder;
+    const USER: &str = "--encoder ae";
+    let checkpoint = resolve_checkpoint(checkpoint, USER)?;
+    let encoder = AeViewEncoder::load(&checkpoint).map_err(|e| bridge_error(e, USER))?;
+    reporter.message(&format!(
+        "recognition: autoencoder features from {}",
+        checkpoint.display()
+    ));
+    Ok(Box::new(encoder))
+}
+
+/// The recognizer: `--model` (checked: its feature dimension and encoder against
+/// `--encoder`'s) with the label names of its run, else an empty model with the dataset's ids
+/// of `library`.
 fn recognizer(
     args: &PickPlaceArgs,
     library: &[ObjectModel],
@@ -596,12 +656,15 @@ fn recognizer(
     }
     let config = RecognitionConfig {
         replay: !args.no_replay,
+        learn_known: args.learn_always,
         confidence_threshold: args.confidence,
         ..RecognitionConfig::default()
     };
+    let encoder_name = args.encoder.name();
     let Some(model) = &args.model else {
-        return Ok(Recognizer::empty(
+        return Ok(Recognizer::empty_with_encoder(
             config,
+            view_encoder(args, reporter)?,
             Labels::of_objects(library),
             args.seed,
         )?);
@@ -609,13 +672,15 @@ fn recognizer(
     let gdm = Gdm::load(model).with_context(|| format!("--model {}", model.display()))?;
     let labels = match model_record(model)? {
         Some((path, record)) => {
-            if record.encoder != ENCODER {
+            if record.encoder != encoder_name {
                 bail!(
-                    "--model {}: the model was trained with the `{}` encoder ({}), pick-place \
-                     recognises with `{ENCODER}`: train a model on GOOD features",
+                    "--model {}: the model was trained with the `{}` encoder ({}), this run \
+                     recognises with `{encoder_name}`: pass --encoder {} or a model trained on \
+                     {encoder_name} features",
                     model.display(),
                     record.encoder,
-                    path.display()
+                    path.display(),
+                    record.encoder
                 );
             }
             Labels {
@@ -632,12 +697,27 @@ fn recognizer(
             Labels::of_objects(library)
         }
     };
-    let recognizer = Recognizer::new(config, gdm, labels, args.seed).map_err(|e| {
-        anyhow::anyhow!(
-            "--model {}: {e} (pick-place recognises with GOOD)",
-            model.display()
-        )
-    })?;
+    // The dimension is checked before the encoder (and torch) is loaded.
+    let dim = match args.encoder {
+        Encoder::Good => GoodEncoder.dim(),
+        Encoder::Ae => crate::data::ae::FEATURE_DIM,
+    };
+    if gdm.dim() != dim {
+        bail!(
+            "--model {}: the model expects {}-d features but the {encoder_name} encoder gives \
+             {dim}-d: was it trained with another encoder?",
+            model.display(),
+            gdm.dim()
+        );
+    }
+    let recognizer = Recognizer::with_encoder(
+        config,
+        view_encoder(args, reporter)?,
+        gdm,
+        labels,
+        args.seed,
+    )
+    .with_context(|| format!("--model {}", model.display()))?;
     Ok(recognizer.with_origin(model.display().to_string()))
 }
 
@@ -685,7 +765,12 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
             command.trim_start_matches("sim ")
         );
     }
-    let mut source = source(robot, args.seed, &reporter)?;
+    let mut source = source(
+        robot,
+        args.seed,
+        Some(args.encoder == Encoder::Ae),
+        &reporter,
+    )?;
     let (library, objects_label) = library(robot, 5, args.object_seed, &reporter)?;
     let mut recognizer = recognizer(&args, &library, &reporter)?;
     let set: Vec<ObjectModel> = interleaved_order(&library)
@@ -763,7 +848,7 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
     gdm.save(&run_dir.path().join(MODEL_FILE))
         .context("saving the model")?;
     let model_record = ModelRecord {
-        encoder: ENCODER.to_string(),
+        encoder: args.encoder.name().to_string(),
         categories: labels.categories,
         instances: labels.instances,
     };
@@ -907,7 +992,7 @@ pub fn pick_place_table(r: &RunResults) -> String {
     if let Some(rec) = &r.recognition {
         let _ = writeln!(
             out,
-            "{}: {} encoder, start model {}, replay {}",
+            "{}: {} encoder, start model {}, replay {}, learns {}",
             if r.run.packing.is_some() {
                 "recognition"
             } else {
@@ -915,7 +1000,12 @@ pub fn pick_place_table(r: &RunResults) -> String {
             },
             rec.encoder,
             rec.start_model,
-            if rec.config.replay { "on" } else { "off" }
+            if rec.config.replay { "on" } else { "off" },
+            if rec.config.learn_known {
+                "every object"
+            } else {
+                "the teacher's lessons"
+            }
         );
         let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
         for (name, rate) in [
@@ -930,7 +1020,8 @@ pub fn pick_place_table(r: &RunResults) -> String {
         if let (Some(first), Some(last)) = (rec.memory.first(), rec.memory.last()) {
             let _ = writeln!(
                 out,
-                "nodes G-EM / G-SM            {} / {} at the start, {} / {} after {} rounds ({} lessons)",
+                "nodes G-EM / G-SM            {} / {} at the start, {} / {} after {} rounds \
+                 ({} lessons)",
                 first.episodic_nodes,
                 first.semantic_nodes,
                 last.episodic_nodes,

@@ -34,7 +34,9 @@ pub mod grasps;
 pub mod views;
 
 pub use grasps::{crop_from_input, decode_params};
-pub use views::{AE_BATCH, FeatureStats, PIPELINE, ViewImage, dataset_features, view_image};
+pub use views::{
+    AE_BATCH, FeatureStats, PIPELINE, ViewImage, dataset_features, view_features, view_image,
+};
 
 /// Length of the autoencoder's feature vector.
 pub const FEATURE_DIM: usize = 256;

@@ -77,6 +77,46 @@ pub fn view_image(
     })
 }
 
+/// The features of a few views (clouds in `camera`'s optical frame, `table` =
+/// [`table_frame`]`(camera)`), one row per cloud, as [`dataset_features`] computes a dataset's:
+/// the robot's recognition with `--encoder ae` (a look's or a lesson's views).
+pub fn view_features(
+    model: &AutoEncoder,
+    clouds: &[PointCloud],
+    camera: &Camera,
+    table: &RgbdFrame,
+) -> Result<Vec<Vec<f32>>, AeError> {
+    let size = model.input_size();
+    let per_image = 4 * size * size;
+    let mut batch = Vec::with_capacity(clouds.len() * per_image);
+    for cloud in clouds {
+        let view = view_image(cloud, camera, table)?;
+        batch.extend(model.preprocess(&view.rgb, &view.depth_m, view.size, view.size)?);
+    }
+    let mut rows = Vec::with_capacity(clouds.len());
+    for chunk in batch.chunks(AE_BATCH * per_image) {
+        let n = chunk.len() / per_image;
+        let out = model.infer(chunk, n, size, size)?;
+        for row in out.features.chunks(FEATURE_DIM) {
+            if row.iter().any(|v| !v.is_finite()) {
+                return Err(AeError::Python(format!(
+                    "the feature of view {} is not finite",
+                    rows.len()
+                )));
+            }
+            rows.push(row.to_vec());
+        }
+    }
+    if rows.len() != clouds.len() {
+        return Err(AeError::Python(format!(
+            "{} views gave {} features",
+            clouds.len(),
+            rows.len()
+        )));
+    }
+    Ok(rows)
+}
+
 /// What [`dataset_features`] noticed besides the table.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FeatureStats {
