@@ -1555,8 +1555,23 @@ fn attempt_caption(a: &AttemptRecord) -> String {
         .grasped_object
         .as_deref()
         .map_or(String::new(), |g| format!(" (pinched {g})"));
+    let recognition = a.recognition.as_ref().map_or(String::new(), |r| {
+        let g = &r.guess;
+        match (g.known, r.teacher) {
+            (true, false) => format!(
+                ", knew it: {}",
+                g.instance.as_deref().unwrap_or(&r.true_instance)
+            ),
+            (false, _) => format!(", did not know it, taught {}", r.true_instance),
+            (true, true) => format!(
+                ", took it for {}, taught {}",
+                g.instance.as_deref().unwrap_or("?"),
+                r.true_instance
+            ),
+        }
+    });
     format!(
-        "attempt {} (try {}{rank}) {object}{grasped}: {outcome}",
+        "attempt {} (try {}{rank}) {object}{grasped}{recognition}: {outcome}",
         a.index, a.try_in_round
     )
 }
