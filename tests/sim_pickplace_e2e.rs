@@ -3,15 +3,16 @@
 //! (true and predicted labels, confidence, the teacher's part) and whose summary holds the
 //! first-guess accuracy, the teacher interventions, grasp and placement rates and the cleared
 //! fraction with Wilson intervals; it saves the learnt model as a dual-memory checkpoint that
-//! loads and that a second run starts from; the same seed gives the same results (wall-clock
-//! fields aside); bad input (`--rounds 0`, `--attempts 0`, a `--model` of another feature
-//! dimension, a model trained with another encoder, an unknown `--targets` category) fails with a
-//! message naming the problem and writes nothing. Packing carries each object to the basket of
-//! the category it was recognised as and counts a success only in the basket of its true
-//! category (a target object packed into the right basket counts; a placement in the wrong basket
-//! is `misrecognised`). With `--arrive-after K` the rounds before K show only the early
-//! categories, the later ones only the rest, and the run ends with the early categories'
-//! first-guess accuracy from fresh views. `--learn-always` learns every object met.
+//! loads, that `lgdm eval` scores on a generated dataset and that a second run starts from; the
+//! same seed gives the same results (wall-clock fields aside); bad input (`--rounds 0`,
+//! `--attempts 0`, a `--model` of another feature dimension, a model trained with another
+//! encoder, an unknown `--targets` category) fails with a message naming the problem and writes
+//! nothing. Packing carries each object to the basket of the category it was recognised as and
+//! counts a success only in the basket of its true category (a target object packed into the
+//! right basket counts; a placement in the wrong basket is `misrecognised`). With
+//! `--arrive-after K` the rounds before K show only the early categories, the later ones only
+//! the rest, and the run ends with the early categories' first-guess accuracy from fresh views.
+//! `--learn-always` learns every object met.
 //!
 //! Run in release (`cargo test --release -p lgdm-cli --test sim_pickplace_e2e`): the physics is
 //! slow in a debug build.
@@ -139,6 +140,37 @@ fn pick_place_recognises_is_taught_and_saves_the_model() {
     assert_eq!(
         gdm.episodic().len() as u64,
         memory[2]["episodic_nodes"].as_u64().unwrap()
+    );
+
+    // `lgdm eval` reads it and scores it on a generated dataset: the robot's ids are the
+    // dataset's.
+    let tiny = dir.join("tiny-dataset");
+    check(
+        lgdm(&dir.join("cache"))
+            .args(["gen-dataset", "--preset", "small", "--frames", "2"])
+            .args(["--grasp-images", "0", "--seed", "5", "--progress", "none"])
+            .arg("--out")
+            .arg(&tiny)
+            .output()
+            .unwrap(),
+        "gen-dataset",
+    );
+    let eval = check(
+        lgdm(&dir.join("cache"))
+            .args(["eval", "--progress", "none", "--model"])
+            .arg(a.join("model.lgdm"))
+            .arg("--dataset")
+            .arg(&tiny)
+            .arg("--out")
+            .arg(dir.join("eval"))
+            .output()
+            .unwrap(),
+        "eval of the pick-place model",
+    );
+    assert!(
+        String::from_utf8_lossy(&eval.stdout).contains("category accuracy (G-SM)"),
+        "{}",
+        String::from_utf8_lossy(&eval.stdout)
     );
 
     // Same seed, same results.
