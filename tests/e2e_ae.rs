@@ -67,16 +67,7 @@ fn tiny_dataset() -> &'static Path {
     static DATA: OnceLock<PathBuf> = OnceLock::new();
     DATA.get_or_init(|| {
         let dir = work_dir().join("tiny");
-        check(
-            lgdm(&work_dir().join("cache-gen"))
-                .args(["gen-dataset", "--preset", "small", "--frames", "2"])
-                .args(["--grasp-images", "0", "--seed", "5", "--progress", "none"])
-                .arg("--out")
-                .arg(&dir)
-                .output()
-                .unwrap(),
-            "gen-dataset",
-        );
+        common::tiny_dataset(&dir, &work_dir().join("cache-gen"));
         dir
     })
 }

@@ -145,16 +145,7 @@ fn pick_place_recognises_is_taught_and_saves_the_model() {
     // `lgdm eval` reads it and scores it on a generated dataset: the robot's ids are the
     // dataset's.
     let tiny = dir.join("tiny-dataset");
-    check(
-        lgdm(&dir.join("cache"))
-            .args(["gen-dataset", "--preset", "small", "--frames", "2"])
-            .args(["--grasp-images", "0", "--seed", "5", "--progress", "none"])
-            .arg("--out")
-            .arg(&tiny)
-            .output()
-            .unwrap(),
-        "gen-dataset",
-    );
+    common::tiny_dataset(&tiny, &dir.join("cache"));
     let eval = check(
         lgdm(&dir.join("cache"))
             .args(["eval", "--progress", "none", "--model"])

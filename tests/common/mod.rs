@@ -21,6 +21,21 @@ pub fn work_dir(tag: &str) -> PathBuf {
     dir
 }
 
+/// A tiny dataset generated at `dir` (small preset, 2 frames per sequence: 900 views, no grasp
+/// images; seed 5), with the feature cache in `cache`.
+pub fn tiny_dataset(dir: &Path, cache: &Path) {
+    check(
+        lgdm(cache)
+            .args(["gen-dataset", "--preset", "small", "--frames", "2"])
+            .args(["--grasp-images", "0", "--seed", "5", "--progress", "none"])
+            .arg("--out")
+            .arg(dir)
+            .output()
+            .unwrap(),
+        "gen-dataset",
+    );
+}
+
 /// Panics, showing both streams, unless the command succeeded.
 pub fn check(out: Output, what: &str) -> Output {
     assert!(
