@@ -43,8 +43,8 @@
 //! [`RecognitionConfig::teach_views`] views (a full orbit) and learns them as one labelled
 //! sequence: [`Gdm::train`] [`RecognitionConfig::teach_epochs`] times, then [`Gdm::end_episode`],
 //! the calls `lgdm train` makes per step. With [`RecognitionConfig::learn_known`] it learns the
-//! objects it knew as well, with its own (right) labels. [`Recognizer::end_round`] replays ([`Gdm::replay`])
-//! after each round unless [`RecognitionConfig::replay`] is off.
+//! objects it knew as well, with its own (right) labels. [`Recognizer::end_round`] replays
+//! ([`Gdm::replay`]) after each round unless [`RecognitionConfig::replay`] is off.
 //!
 //! ```
 //! use lgdm_pointcloud::objects::procedural_library;
