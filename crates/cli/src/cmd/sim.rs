@@ -703,12 +703,12 @@ fn recognizer(
         Encoder::Ae => crate::data::ae::FEATURE_DIM,
     };
     if gdm.dim() != dim {
-        bail!(
-            "--model {}: the model expects {}-d features but the {encoder_name} encoder gives \
-             {dim}-d: was it trained with another encoder?",
-            model.display(),
-            gdm.dim()
-        );
+        let e = lgdm_sim::recognize::RecognitionError::Dimension {
+            model: gdm.dim(),
+            name: encoder_name.to_string(),
+            encoder: dim,
+        };
+        return Err(anyhow::Error::new(e).context(format!("--model {}", model.display())));
     }
     let recognizer = Recognizer::with_encoder(
         config,
