@@ -13,6 +13,8 @@ What must agree, and is checked here, end to end through the real binary:
    category confusion matrix that ``lgdm eval`` reports for that file.
 3. A model trained in Python (fixed seed) and saved is read by ``lgdm eval``, which reports
    exactly the scores Python computes for it.
+4. The model a robot run learns (``lgdm sim pick-place``) loads in Python with the run's node
+   counts.
 
 Same data and seed giving the same bytes within Python is tested in ``test_gdm.py``. The CLI
 binary is looked up in ``$LGDM_BIN``, then ``$CARGO_TARGET_DIR/release/lgdm``, then
@@ -173,3 +175,18 @@ def test_run_scenario_equals_the_cli_metrics(
     for t, model in enumerate(models):
         assert model.to_bytes() == (out / f"model-trial{t}.lgdm").read_bytes()
 
+
+
+def test_pick_place_model_loads_in_python(cli, tmp_path):
+    """The model a robot run learnt (``lgdm sim pick-place``) loads with ``lgdm.GDM.load``, with
+    the node counts the run reports and GOOD's 675 inputs."""
+    out = tmp_path / "pp"
+    run(cli, "sim", "pick-place", "--rounds", "1", "--seed", "2", "--objects", "5",
+        "--progress", "none", "--out", out, cache=tmp_path / "cache")
+    results = json.loads((out / "results.json").read_text())
+    last = results["recognition"]["memory"][-1]
+    model = lgdm.GDM.load(out / "model.lgdm")
+    assert model.n_features_in_ == 675
+    assert model.n_nodes_episodic_ == last["episodic_nodes"] >= 2
+    assert model.n_nodes_semantic_ == last["semantic_nodes"]
+    assert json.loads((out / "model.json").read_text())["encoder"] == "good"
