@@ -1,11 +1,14 @@
 """Shared fixtures: tiny synthetic datasets written into temporary directories: Cornell-style
 (non-square frames, object = folder, no index) and lgdm-style (224-px square crops, index.json
-with objects and categories).
+with objects and categories); and the Wilson-interval fixture the Rust side is pinned to.
 
 One torch thread: on a 2-core machine shared with builds, two OpenMP threads that spin-wait for
 each other are several times slower than one."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -28,3 +31,28 @@ def lgdm_dir(tmp_path_factory):
     """4 objects of 2 categories x 3 images, 224x224 crops, lgdm.grasp.v2 index."""
     return write_synthetic_dataset(tmp_path_factory.mktemp("lgdm"), objects=4,
                                    images_per_object=3, seed=0, layout="lgdm", categories=2)
+
+
+WILSON_FIXTURE = Path(__file__).resolve().parents[3] / "tests" / "fixtures" / "wilson.json"
+
+
+@pytest.fixture(scope="session")
+def wilson_cases() -> list[dict]:
+    """``<repo>/tests/fixtures/wilson.json``: Wilson 95 % intervals computed by the Rust formula
+    (``lgdm_base::stats::wilson_interval``), a list of ``{"successes", "trials", "low",
+    "high"}``. Missing or malformed is a failure, not a skip."""
+    if not WILSON_FIXTURE.is_file():
+        pytest.fail(f"Wilson fixture {WILSON_FIXTURE} does not exist", pytrace=False)
+    cases = json.loads(WILSON_FIXTURE.read_text())
+    assert isinstance(cases, list) and cases, WILSON_FIXTURE
+    for c in cases:
+        assert set(c) == {"successes", "trials", "low", "high"}, c
+    return cases
+
+
+def wilson_case(cases: list[dict], successes: int, trials: int) -> tuple[float, float]:
+    """The fixture's (low, high) for ``successes`` of ``trials``; a failure if it has none."""
+    for c in cases:
+        if (c["successes"], c["trials"]) == (successes, trials):
+            return c["low"], c["high"]
+    pytest.fail(f"{WILSON_FIXTURE} has no entry for {successes}/{trials}", pytrace=False)

@@ -1,5 +1,5 @@
 """Grasp rectangles: exact polygon IoU, the rectangle metric at its thresholds, label maps and
-decoding them back (round trip), the Wilson interval."""
+decoding them back (round trip). (The Wilson interval: test_wilson.py.)"""
 
 from __future__ import annotations
 
@@ -19,7 +19,6 @@ from train_ae.grasp import (
     jaw_px_for,
     polygon_iou,
     rectangle_iou,
-    wilson_interval,
 )
 
 deg = math.radians
@@ -158,13 +157,6 @@ def test_label_maps_and_back_round_trip():
 def test_decode_of_empty_maps_finds_nothing():
     z = np.zeros((64, 64), np.float32)
     assert decode_grasps(z, z, z, z) == []
-
-
-def test_wilson_interval_known_values():
-    assert wilson_interval(8, 10) == pytest.approx((0.4901624, 0.9433178), abs=1e-6)
-    lo, hi = wilson_interval(0, 4)
-    assert lo == 0.0 and hi == pytest.approx(1.959964**2 / (4 + 1.959964**2), abs=1e-6)
-    assert wilson_interval(0, 0) == (0.0, 1.0)
 
 
 def test_decoded_jaw_is_the_given_width_or_half_the_opening():

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from conftest import wilson_case
 
 from train_ae import bridge
 from train_ae import evaluate as evaluate_cli
@@ -87,7 +88,7 @@ def test_not_a_checkpoint_is_a_clear_error(tmp_path):
         load_checkpoint(p)
 
 
-def test_train_and_evaluate_commands(fixture_dir, tmp_path, capsys):
+def test_train_and_evaluate_commands(fixture_dir, tmp_path, capsys, wilson_cases):
     out = tmp_path / "run" / "ae.pt"
     argv = ["--data", str(fixture_dir), "--config", "cpu", "--epochs", "1", "--out", str(out),
             "--batch-size", "4", "--val-fraction", "0.25", "--seed", "3", "--threads", "1",
@@ -98,7 +99,10 @@ def test_train_and_evaluate_commands(fixture_dir, tmp_path, capsys):
     _, ckpt = load_checkpoint(out)
     held = ckpt["metrics"]["heldout"]
     assert held["n"] == 3 and len(held["objects"]) == 1
-    assert 0.0 <= held["ci95"][0] <= held["ci95"][1] <= 1.0
+    # The recorded interval is the Wilson interval of the recorded counts (the shared fixture,
+    # computed with the Rust formula, has every k/3).
+    assert 0 <= held["correct"] <= 3
+    assert held["ci95"] == pytest.approx(wilson_case(wilson_cases, held["correct"], 3), abs=1e-12)
     assert set(ckpt["metrics"]["training"]["train_objects"]).isdisjoint(held["objects"])
 
     assert evaluate_cli.main(["--data", str(fixture_dir), "--ckpt", str(out), "--threads", "1",
@@ -111,7 +115,7 @@ def test_train_and_evaluate_commands(fixture_dir, tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
-def test_evaluation_of_perfect_maps_scores_everything(fixture_dir):
+def test_evaluation_of_perfect_maps_scores_everything(fixture_dir, wilson_cases):
     """The metric pipeline itself, with a stand-in network that returns the label maps."""
     ds = GraspDataset(find_samples(fixture_dir), 112, augment=False)
     targets = [torch.from_numpy(ds.item(i)[1]) for i in range(len(ds))]
@@ -125,7 +129,8 @@ def test_evaluation_of_perfect_maps_scores_everything(fixture_dir):
             return tuple(y[:, k] for k in range(4))
 
     result = evaluate_model(Oracle(), ds, batch_size=5)
-    assert result["n"] == len(ds) == result["correct"]
+    assert result["n"] == len(ds) == result["correct"] == 12
+    assert result["ci95"] == list(wilson_case(wilson_cases, 12, 12))  # high exactly 1.0
     assert result["ci95"][1] == 1.0
 
 

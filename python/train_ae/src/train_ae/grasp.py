@@ -292,14 +292,23 @@ def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, wid
 
 
 def wilson_interval(correct: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval for a binomial proportion (default 95 %); (0, 1) when n = 0."""
+    """Wilson score interval for a binomial proportion (default 95 %); (0, 1) when n = 0.
+
+    Exact at the ends, like the Rust ``lgdm_base::stats::wilson_interval``: no successes give a
+    low end of 0, no failures a high end of 1 (the formula's rounding would miss them, e.g.
+    0.9999999999999999 for 10/10). Same operations in the same order as the Rust function, so
+    both give the values of ``tests/fixtures/wilson.json``."""
     if n <= 0:
         return 0.0, 1.0
-    p = correct / n
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z / denom * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return max(0.0, centre - half), min(1.0, centre + half)
+    nf = float(n)
+    p = min(correct, n) / nf
+    z2 = z * z
+    denom = 1.0 + z2 / nf
+    centre = (p + z2 / (2.0 * nf)) / denom
+    half = z * math.sqrt(p * (1.0 - p) / nf + z2 / (4.0 * nf * nf)) / denom
+    low = 0.0 if correct <= 0 else max(0.0, centre - half)
+    high = 1.0 if correct >= n else min(1.0, centre + half)
+    return low, high
 
 
 def jaw_px_for(jaw_side_fraction: float | None, map_side: int) -> float | None:
