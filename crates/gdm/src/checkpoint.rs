@@ -40,7 +40,6 @@
 //! assert!(matches!(err, CheckpointError::Truncated { .. }));
 //! ```
 
-use std::io::Write;
 use std::path::Path;
 
 use crate::config::{GdmConfig, MAX_DIM};
@@ -465,10 +464,10 @@ impl Gdm {
         })
     }
 
-    /// Writes the checkpoint atomically ([`write_atomic`]): on error no partial file is left at
+    /// Writes the checkpoint atomically ([`lgdm_base::fs::write_bytes`]): on error no partial file is left at
     /// `path`.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
-        write_atomic(path, &self.to_bytes())?;
+        lgdm_base::fs::write_bytes(path, &self.to_bytes())?;
         Ok(())
     }
 
@@ -477,31 +476,4 @@ impl Gdm {
         let bytes = std::fs::read(path)?;
         Gdm::from_bytes(&bytes)
     }
-}
-
-/// Writes `bytes` atomically: to a temporary file in `path`'s directory, flushed to disk, then
-/// renamed over `path`. On error no partial file is left at `path`. Checkpoints and run
-/// directories (`experiment::run_dir`) are written this way.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .map_or_else(|| "file".into(), |n| n.to_string_lossy());
-    let prefix = format!(".{name}-");
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
-    // The permissions `File::create` gives (0o666 minus the umask), not a temp file's 0o600.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    let mut tmp = builder.tempfile_in(dir)?;
-    tmp.write_all(bytes)?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| e.error)?;
-    Ok(())
 }

@@ -19,6 +19,7 @@
 //! assert!(stats.samples >= before);
 //! ```
 
+use lgdm_base::seed::splitmix64;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -71,14 +72,6 @@ fn walk(
     }
 }
 
-/// splitmix64: decorrelates the per-call seeds.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 impl Gdm {
     /// Intrinsic replay of RNATs into both memories (call after an episode, typically after
     /// [`Gdm::end_episode`]). With `replay.shuffle` the chains are replayed in an order drawn
@@ -110,7 +103,7 @@ impl Gdm {
         let mut semantic_hint: Vec<Option<usize>> = vec![None; n];
         let mut order: Vec<usize> = (0..n).collect();
         if self.config.replay.shuffle {
-            let seed = mix(self.config.seed ^ mix(self.replays));
+            let seed = splitmix64(self.config.seed ^ splitmix64(self.replays));
             order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
         }
         let mut chain = Vec::with_capacity(length.min(n + 1));

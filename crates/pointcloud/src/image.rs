@@ -12,7 +12,7 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use crate::fsutil::write_atomic;
+use lgdm_base::fs::write_atomic;
 
 /// Errors writing or reading images.
 #[derive(Debug, thiserror::Error)]

@@ -30,8 +30,6 @@ pub mod cloud;
 pub mod crop;
 pub mod dataset;
 pub mod features;
-pub(crate) mod fsutil;
-pub use fsutil::{DirLock, LOCK_FILE};
 pub mod good;
 pub mod grasp;
 pub mod image;
@@ -47,4 +45,5 @@ pub mod render;
 pub mod segment;
 
 pub use cloud::PointCloud;
+pub use lgdm_base::fs::{DirLock, LOCK_FILE};
 pub use progress::Progress;

@@ -197,21 +197,7 @@ pub mod pose_serde {
     }
 }
 
-/// SplitMix64 step: mixes a 64-bit value into a well-distributed one (used to derive
-/// independent per-stream seeds from the dataset seed).
-pub fn splitmix64(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-/// Derives a seed for a named stream (`tag`) and indices from a base seed.
-pub fn derive_seed(seed: u64, tag: u64, a: u64, b: u64) -> u64 {
-    splitmix64(
-        splitmix64(splitmix64(seed ^ splitmix64(tag)) ^ a) ^ b.wrapping_mul(0x2545_F491_4F6C_DD1D),
-    )
-}
+pub use lgdm_base::seed::{derive_seed, splitmix64};
 
 #[cfg(test)]
 mod tests {

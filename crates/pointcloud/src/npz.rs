@@ -260,7 +260,7 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpyRef<'_>)]) -> Result<(), NpzEr
     out.extend_from_slice(&(central.len() as u32).to_le_bytes());
     out.extend_from_slice(&cd_offset.to_le_bytes());
     out.extend_from_slice(&0u16.to_le_bytes());
-    crate::fsutil::write_atomic(path, |w| std::io::Write::write_all(w, &out)).map_err(|source| {
+    lgdm_base::fs::write_atomic(path, |w| std::io::Write::write_all(w, &out)).map_err(|source| {
         NpzError::Io {
             path: path.to_path_buf(),
             source,

@@ -1,4 +1,5 @@
-//! [`Progress`]: what long-running library calls report to their caller's callback.
+//! [`Progress`] (the workspace's one progress report, from `lgdm_base`) and parallel work that
+//! reports it on the caller's thread.
 //!
 //! ```
 //! use lgdm_pointcloud::Progress;
@@ -8,16 +9,7 @@
 //! assert_eq!(last, Some(("views", 3, 10)));
 //! ```
 
-/// A progress report: `done` of `total` units of work in `stage`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Progress {
-    /// What is being done (`objects`, `views`, `grasp images`, `previews`, `features`).
-    pub stage: &'static str,
-    /// Units finished.
-    pub done: u64,
-    /// Units in the stage.
-    pub total: u64,
-}
+pub use lgdm_base::Progress;
 
 /// Runs `work(i, tick)` for every `i` in `0..n` on rayon's thread pool and returns the results
 /// in index order (so the output never depends on the number of threads). Workers report

@@ -31,8 +31,7 @@ pub const CONFIG_FILE: &str = "config.toml";
 /// The metrics file of a run.
 pub const METRICS_FILE: &str = "metrics.json";
 
-/// The lock file that keeps two processes out of one run directory.
-pub const LOCK_FILE: &str = ".lgdm.lock";
+pub use lgdm_base::fs::LOCK_FILE;
 /// The folder of per-trial records.
 pub const TRIALS_DIR: &str = "trials";
 
@@ -167,7 +166,7 @@ fn run_dir_error(path: &Path, message: impl std::fmt::Display) -> ExperimentErro
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
 /// reader never sees half a file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
-    crate::checkpoint::write_atomic(path, bytes).map_err(|e| run_dir_error(path, e))
+    lgdm_base::fs::write_bytes(path, bytes).map_err(|e| run_dir_error(path, e))
 }
 
 /// A finished run read back from its directory.
@@ -229,89 +228,61 @@ impl Run {
     }
 }
 
-/// Whether `name` is a file or folder a run directory holds (what `--force` may remove).
-fn is_run_entry(name: &str) -> bool {
-    matches!(
+/// What a training run directory holds (what `--force` may remove).
+fn classify(name: &str, _is_dir: bool) -> lgdm_base::fs::Entry {
+    let ours = matches!(
         name,
-        CONFIG_FILE | METRICS_FILE | LOCK_FILE | TRIALS_DIR | "summary.txt" | "eval"
+        CONFIG_FILE | METRICS_FILE | TRIALS_DIR | "summary.txt" | "eval"
     ) || name.ends_with(".png")
         || (name.starts_with("model-trial") && name.ends_with(".lgdm"))
-        || (name.starts_with('.') && name.ends_with(".tmp"))
+        || (name.starts_with('.') && name.ends_with(".tmp"));
+    if ours {
+        lgdm_base::fs::Entry::Ours
+    } else {
+        lgdm_base::fs::Entry::Foreign
+    }
 }
+
+/// The ownership policy of training run directories ([`lgdm_base::fs::claim`]).
+const OWNERSHIP: lgdm_base::fs::Ownership<'static> = lgdm_base::fs::Ownership {
+    kind: "an lgdm run",
+    occupied: "holds another run; choose another directory, pass --force to replace it, \
+               or --resume to finish it",
+    classify: &classify,
+};
 
 /// A run directory owned by this process: locked against other writers while it lives.
 #[derive(Debug)]
 pub struct RunDir {
     dir: PathBuf,
     /// Holds the lock (released when the process ends, however it ends).
-    _lock: std::fs::File,
+    _lock: lgdm_base::fs::DirLock,
 }
 
 impl RunDir {
     fn lock(dir: &Path) -> Result<RunDir, ExperimentError> {
-        std::fs::create_dir_all(dir).map_err(|e| run_dir_error(dir, e))?;
-        let path = dir.join(LOCK_FILE);
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .map_err(|e| run_dir_error(&path, e))?;
-        match file.try_lock() {
-            Ok(()) => Ok(RunDir {
-                dir: dir.to_path_buf(),
-                _lock: file,
-            }),
-            Err(std::fs::TryLockError::WouldBlock) => Err(run_dir_error(
-                dir,
-                "another lgdm process is writing this run directory",
-            )),
-            Err(std::fs::TryLockError::Error(e)) => Err(run_dir_error(&path, e)),
-        }
+        let lock = lgdm_base::fs::DirLock::try_acquire(dir)
+            .map_err(|e| run_dir_error(dir, e))?
+            .ok_or_else(|| {
+                run_dir_error(dir, "another lgdm process is writing this run directory")
+            })?;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            _lock: lock,
+        })
     }
 
     /// Creates `dir` as a fresh run directory and locks it. A directory that already holds
     /// files is refused, unless `force` is set and every file in it belongs to a run (those are
-    /// removed first); a directory holding anything else is never cleared.
+    /// removed first); a directory holding anything else is never cleared, and a refused one is
+    /// left as it was found ([`lgdm_base::fs::claim`]).
     pub fn create(dir: &Path, force: bool) -> Result<RunDir, ExperimentError> {
-        let run = RunDir::lock(dir)?;
-        let entries = std::fs::read_dir(dir).map_err(|e| run_dir_error(dir, e))?;
-        let mut old = Vec::new();
-        for entry in entries {
-            let entry = entry.map_err(|e| run_dir_error(dir, e))?;
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if name == LOCK_FILE {
-                continue;
-            }
-            if !is_run_entry(&name) {
-                return Err(run_dir_error(
-                    dir,
-                    format!(
-                        "holds {name}, which is not part of an lgdm run; choose another directory"
-                    ),
-                ));
-            }
-            old.push(entry.path());
-        }
-        if !old.is_empty() {
-            if !force {
-                return Err(run_dir_error(
-                    dir,
-                    "holds another run; choose another directory, pass --force to replace it, \
-                     or --resume to finish it",
-                ));
-            }
-            old.sort();
-            for path in old {
-                let removed = if path.is_dir() {
-                    std::fs::remove_dir_all(&path)
-                } else {
-                    std::fs::remove_file(&path)
-                };
-                removed.map_err(|e| run_dir_error(&path, e))?;
-            }
-        }
-        Ok(run)
+        let lock = lgdm_base::fs::claim(dir, force, &OWNERSHIP)
+            .map_err(|e| run_dir_error(&e.path, e.reason))?;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            _lock: lock,
+        })
     }
 
     /// Reopens a run directory to finish it: locks it and reads its `config.toml`.

@@ -14,13 +14,13 @@ use super::{
     InstanceInfo, MANIFEST_FILE, Manifest, POINT_CLOUD_FRAME_ID, PointCloud, Progress,
 };
 use crate::augment::{Augmentation, subsample};
-use crate::fsutil::write_json_atomic;
 use crate::grasp::{CornellExport, export_cornell};
 use crate::import::ImportReport;
 use crate::math::{Pose, derive_seed, rotation_z, translation};
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, procedural_library, rest_on_table};
 use crate::render::{Camera, RenderItem, RgbdFrame, render};
+use lgdm_base::fs::write_json as write_json_atomic;
 
 /// Seed stream tags (keep stable: they define the dataset bytes).
 const TAG_SEQUENCE: u64 = 0x5E0;

@@ -14,7 +14,7 @@ use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOp
 use prost::Message as _;
 
 use super::{DatasetError, Manifest, PointCloud, Sequence};
-use crate::fsutil::AtomicFile;
+use lgdm_base::fs::AtomicFile;
 
 /// `frame_id` of every point cloud: the turntable camera's optical frame.
 pub const POINT_CLOUD_FRAME_ID: &str = "camera_optical";

@@ -37,7 +37,6 @@ use serde::{Deserialize, Serialize};
 use super::decode::InputCrop;
 use super::label::{GraspCandidate, GraspRectangle, GraspSpec, GraspVerdict, synthesize_grasps};
 use crate::crop::{CropError, CropSpec, ObjectCrop, crop_largest_object};
-use crate::fsutil::{write_atomic, write_json_atomic};
 use crate::image::{ImageError, RgbImage, write_depth_tiff};
 use crate::math::{Pose, derive_seed, look_at, rotation_z, translation};
 use crate::mesh::Mesh;
@@ -45,6 +44,7 @@ use crate::objects::ObjectModel;
 use crate::progress::{Progress, par_map_with_progress};
 use crate::render::{Camera, Intrinsics, RenderItem, RgbdFrame, render};
 use crate::segment::SegmentParams;
+use lgdm_base::fs::{write_atomic, write_json as write_json_atomic};
 
 /// Errors of the Cornell export and reader. Each names the file.
 #[derive(Debug, thiserror::Error)]
