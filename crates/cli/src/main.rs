@@ -5,8 +5,6 @@
 
 mod cmd;
 mod data;
-#[cfg(feature = "ae")]
-mod network;
 mod plot;
 mod progress;
 mod report;

@@ -29,16 +29,17 @@
 //! assert_eq!(arrival.pool(&library, 5).len(), 2);
 //! ```
 
-use lgdm_pointcloud::math::{derive_seed, rotation_z, translation};
+use lgdm_base::seed::derive_seed;
+use lgdm_pointcloud::math::{rotation_z, translation};
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::attempt::WallTimes;
 use crate::recognize::{Guess, RecognitionError, Recognizer};
-use crate::run::Rate;
+use crate::timing::WallTimes;
 use crate::world::{World, WorldConfig};
+use lgdm_base::stats::Rate;
 
 /// Seed tag of the evaluation's yaws.
 const TAG_EVAL_YAW: u64 = 0x5133_0020;
@@ -198,6 +199,113 @@ pub struct ArrivalEvaluation {
     pub at_switch: Option<Evaluation>,
     /// After the last round.
     pub at_end: Evaluation,
+}
+
+impl Evaluation {
+    /// First-guess category accuracy per category (in order of first appearance among the
+    /// looks), with whether the category is an early one: the numbers behind the binary's
+    /// `end_evaluation.png`.
+    pub fn per_category(&self) -> Vec<(String, bool, Rate)> {
+        let mut categories: Vec<(String, bool)> = Vec::new();
+        for l in &self.looks {
+            if !categories.iter().any(|(c, _)| c == &l.category) {
+                categories.push((l.category.clone(), l.early));
+            }
+        }
+        categories
+            .into_iter()
+            .map(|(c, early)| {
+                let of: Vec<&EvaluationLook> =
+                    self.looks.iter().filter(|l| l.category == c).collect();
+                let rate = Rate::of(&of, |l| l.category_correct);
+                (c, early, rate)
+            })
+            .collect()
+    }
+}
+
+/// An arrival plan at work in a run (the runner's policy for categories arriving over time):
+/// the objects each round draws from, and the evaluations when the late categories arrive and
+/// at the end.
+#[derive(Debug)]
+pub(crate) struct ArrivalRun<'a> {
+    /// The plan.
+    pub arrival: &'a Arrival,
+    world: &'a WorldConfig,
+    library: &'a [ObjectModel],
+    at_xy_m: [f32; 2],
+    seed: u64,
+    at_switch: Option<Evaluation>,
+    /// Wall seconds of the evaluations.
+    pub evaluation_s: f64,
+}
+
+impl<'a> ArrivalRun<'a> {
+    /// `arrival` on `library`, evaluating on tables of `world` at `at_xy_m`, seeded from `seed`.
+    pub fn new(
+        arrival: &'a Arrival,
+        world: &'a WorldConfig,
+        library: &'a [ObjectModel],
+        at_xy_m: [f32; 2],
+        seed: u64,
+    ) -> Self {
+        Self {
+            arrival,
+            world,
+            library,
+            at_xy_m,
+            seed,
+            at_switch: None,
+            evaluation_s: 0.0,
+        }
+    }
+
+    /// Before round `round`: when the late categories arrive with it, what the early rounds
+    /// taught.
+    pub fn before_round(
+        &mut self,
+        round: usize,
+        recognizer: &mut Recognizer,
+    ) -> Result<(), RecognitionError> {
+        if self.arrival.after_round == round {
+            self.at_switch = Some(self.evaluate(recognizer, round)?);
+        }
+        Ok(())
+    }
+
+    /// After the last of `rounds_played` rounds: what the model still knows of every object.
+    pub fn finish(
+        mut self,
+        recognizer: &mut Recognizer,
+        rounds_played: usize,
+    ) -> Result<(ArrivalEvaluation, f64), RecognitionError> {
+        let at_end = self.evaluate(recognizer, rounds_played)?;
+        let evaluation = ArrivalEvaluation {
+            arrival: self.arrival.clone(),
+            at_switch: self.at_switch,
+            at_end,
+        };
+        Ok((evaluation, self.evaluation_s))
+    }
+
+    fn evaluate(
+        &mut self,
+        recognizer: &mut Recognizer,
+        rounds_played: usize,
+    ) -> Result<Evaluation, RecognitionError> {
+        let start = std::time::Instant::now();
+        let e = evaluate(
+            recognizer,
+            self.world,
+            self.library,
+            self.arrival,
+            self.at_xy_m,
+            self.seed,
+            rounds_played,
+        );
+        self.evaluation_s += start.elapsed().as_secs_f64();
+        e
+    }
 }
 
 /// The first guess of `recognizer` after `rounds_played` rounds about every object of `library`,

@@ -9,8 +9,8 @@
 //! - [`trajectory`]: joint trajectories timed within the speed and acceleration limits, and
 //!   straight-line tool moves (approach, descend, lift).
 //! - [`world`]: the rapier3d physics world — the reference table (top at z = 0.785 m), two
-//!   baskets, a floor, and dynamic objects built from the pointcloud crate's meshes (convex
-//!   hulls); spawn, drop at a random pose, settle, read poses back for the renderer.
+//!   baskets, a floor, and dynamic objects built from the pointcloud crate's meshes (their
+//!   [`shapes`]); spawn, drop at a random pose, settle, read poses back for the renderer.
 //! - [`gripper`]: a kinematic palm and two dynamic, force-limited fingers on prismatic joints;
 //!   opening commands ramp, the gap is read from body poses, contacts per finger.
 //! - [`robot`]: the arm's links as kinematic bodies posed by forward kinematics, the gripper at
@@ -25,15 +25,25 @@
 //!   geometry, the dataset's GOOD features, the dual memory's first guess with a confidence, the
 //!   simulated teacher's lessons and replay.
 //! - [`attempt`]: one attempt (approach, guarded descent, close, lift, judge, carry, release,
-//!   judge) with strict and contact-only success and a failure reason.
-//! - [`scenario`]: isolated, packed and pile tables.
-//! - [`shapes`]: objects' colliders — the mesh's convex hull (default) or a convex
-//!   decomposition that keeps openings and handles.
-//! - [`run`]: rounds of a scenario, `results.json` (rates with Wilson intervals, per category,
-//!   per failure reason) in a run directory.
+//!   judge) with strict and contact-only success and a failure reason; [`timing`] adds up
+//!   where its wall time goes.
+//! - [`scenario`]: isolated, packed, pile and scattered tables.
+//! - [`shapes`]: objects' colliders — a convex decomposition that keeps openings and handles
+//!   (default), or the mesh's convex hull.
+//! - [`spec`]: what a run is ([`spec::RunSpec`], every constant in [`spec::SimConfig`]),
+//!   validated once; its errors.
+//! - [`runner`]: playing the rounds, calling an [`observe::RunObserver`] at each event;
+//!   [`packing`] and [`arrival`] are the policies pick-and-place can add.
+//! - [`results`]: attempt and round records, the summary (rates with Wilson intervals, per
+//!   category, per failure reason), everything `results.json` holds; [`report`] the same as
+//!   text (`summary.txt`).
+//! - [`model`]: the model a pick-and-place run starts from and leaves, with its record.
+//! - [`run_dir`]: the run directory (ownership, lock, atomic files).
+//! - [`job`]: the binary's jobs as one library call each — grasp, pick-and-place, packing —
+//!   from a setup to a written run directory.
 //! - [`record`]: optional recording of rounds for Foxglove — one MCAP per round (`/tf` of every
 //!   body, the scene, camera images, the chosen grasp, events; sim time, so same seed → same
-//!   bytes) and a PNG storyboard per round.
+//!   bytes) and a PNG storyboard per round; [`captions`] says in words what happened.
 //!
 //! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
 //! teleported. Physics is single-threaded and deterministic: same inputs, same bits.
@@ -82,17 +92,26 @@ pub mod arm;
 pub mod arrival;
 pub mod attempt;
 pub mod camera;
+pub mod captions;
 pub mod gripper;
 pub mod ik;
+pub mod job;
+pub mod model;
+pub mod observe;
 pub mod packing;
 pub mod perception;
 pub mod recognize;
 pub mod record;
+pub mod report;
+pub mod results;
 pub mod robot;
-pub mod run;
+pub mod run_dir;
+pub mod runner;
 pub mod scenario;
 pub mod shapes;
 pub mod source;
+pub mod spec;
+pub mod timing;
 pub mod trajectory;
 pub mod world;
 

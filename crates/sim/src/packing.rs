@@ -36,8 +36,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::attempt::FailureReason;
 use crate::recognize::{Labels, RecognitionRecord};
-use crate::run::{AttemptRecord, Rate};
 use crate::world::WorldConfig;
+use lgdm_base::stats::Rate;
 use lgdm_pointcloud::objects::ObjectModel;
 
 /// The left basket as the robot sees it: the world's basket 0, at x = +0.7 m (the one `sim
@@ -268,13 +268,16 @@ pub struct PackingSummary {
     pub per_category: BTreeMap<String, Rate>,
 }
 
-/// The packing summary of a packing run's `attempts` (attempts without a packing record — at no
-/// object — count as failures); `presented` objects were set on the tables.
-pub fn summarize(attempts: &[AttemptRecord], presented: usize) -> PackingSummary {
-    let packed: Vec<(&AttemptRecord, &PackingRecord)> = attempts
-        .iter()
-        .filter_map(|a| a.packing.as_ref().map(|p| (a, p)))
-        .collect();
+/// The packing summary of a packing run of `attempts` attempts: `packed` holds, per attempt at
+/// an object, the category aimed at and its packing record (attempts without one — at no
+/// object — count as failures); `misrecognised` attempts were placed in the wrong basket;
+/// `presented` objects were set on the tables.
+pub fn summarize(
+    packed: &[(Option<&str>, &PackingRecord)],
+    attempts: usize,
+    misrecognised: usize,
+    presented: usize,
+) -> PackingSummary {
     let successes = packed.iter().filter(|(_, p)| p.success).count();
     let mut decided_by: BTreeMap<String, usize> =
         [DecidedBy::Guess, DecidedBy::Teacher, DecidedBy::Nothing]
@@ -282,23 +285,20 @@ pub fn summarize(attempts: &[AttemptRecord], presented: usize) -> PackingSummary
             .map(|d| (d.as_str().to_string(), 0))
             .collect();
     let mut per_category: BTreeMap<String, (usize, usize)> = BTreeMap::new();
-    for (a, p) in &packed {
+    for (category, p) in packed {
         *decided_by
             .entry(p.choice.decided_by.as_str().to_string())
             .or_default() += 1;
         let c = per_category
-            .entry(a.category.clone().unwrap_or_else(|| "unknown".into()))
+            .entry(category.unwrap_or("unknown").to_string())
             .or_default();
         c.0 += usize::from(p.success);
         c.1 += 1;
     }
     PackingSummary {
-        success_rate: Rate::new(successes, attempts.len()),
+        success_rate: Rate::new(successes, attempts),
         packed_fraction: Rate::new(successes, presented),
-        misrecognised: attempts
-            .iter()
-            .filter(|a| a.reason == Some(FailureReason::Misrecognised))
-            .count(),
+        misrecognised,
         decided_by,
         per_category: per_category
             .into_iter()

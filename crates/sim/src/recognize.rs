@@ -55,18 +55,18 @@
 //! assert_eq!(recognizer.model().episodic().len(), 0);
 //! ```
 
+use lgdm_base::seed::derive_seed;
 use lgdm_gdm::{Gdm, GdmConfig, GdmError, PredictOptions, Sample};
 use lgdm_pointcloud::cache::{GOOD_BINS, GOOD_DIM};
 use lgdm_pointcloud::dataset::{CameraSpec, label_ids, view_cloud};
 use lgdm_pointcloud::good::good_descriptor;
-use lgdm_pointcloud::math::derive_seed;
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::attempt::{WallTimes, Work};
 use crate::camera::{CameraError, LABEL_FIRST_OBJECT, ObjectDrawing, render_world};
+use crate::timing::{WallTimes, Work};
 use crate::world::{ObjectHandle, World, WorldError};
 
 /// The default encoder's name: GOOD ([`GOOD_BINS`] bins, [`GOOD_DIM`] values).
@@ -74,7 +74,8 @@ pub const ENCODER: &str = "good";
 
 /// What turns the robot's views into the dual memory's input: the dataset path's encoder, so a
 /// model `lgdm train` made with it recognises the robot's objects. [`GoodEncoder`] here; the
-/// autoencoder's (`--encoder ae`) lives with the torch bridge, in the command line's `ae` build.
+/// autoencoder's (`--encoder ae`) lives with the torch bridge (`lgdm_pybridge::ae::robot`, feature
+/// `ae`).
 pub trait ViewEncoder: std::fmt::Debug {
     /// The name runs record (`lgdm train --encoder NAME`): `good`, `ae`.
     fn name(&self) -> &str;
@@ -88,8 +89,12 @@ pub trait ViewEncoder: std::fmt::Debug {
         &mut self,
         views: &[lgdm_pointcloud::PointCloud],
         camera: &lgdm_pointcloud::render::Camera,
-    ) -> Result<Vec<Option<Vec<f32>>>, String>;
+    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError>;
 }
+
+/// The error of a [`ViewEncoder`] (the autoencoder's bridge error, or a caller's own): kept as
+/// the source of [`RecognitionError::Encoder`].
+pub type EncoderError = Box<dyn std::error::Error + Send + Sync>;
 
 /// GOOD with [`GOOD_BINS`] bins: what `lgdm features` computes per stored view.
 #[derive(Debug, Clone, Copy, Default)]
@@ -108,7 +113,7 @@ impl ViewEncoder for GoodEncoder {
         &mut self,
         views: &[lgdm_pointcloud::PointCloud],
         _camera: &lgdm_pointcloud::render::Camera,
-    ) -> Result<Vec<Option<Vec<f32>>>, String> {
+    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError> {
         Ok(views
             .iter()
             .map(|cloud| good_descriptor(&cloud.points, GOOD_BINS).ok())
@@ -240,12 +245,12 @@ pub enum RecognitionError {
         encoder: usize,
     },
     /// The encoder failed on the views.
-    #[error("the {name} encoder: {message}")]
+    #[error("the {name} encoder failed")]
     Encoder {
         /// The encoder's name.
         name: String,
         /// What went wrong.
-        message: String,
+        source: EncoderError,
     },
     /// The dual memory failed.
     #[error("dual memory: {0}")]
@@ -548,9 +553,9 @@ impl Recognizer {
         let camera = self.config.camera.camera();
         let encoder = &mut self.encoder;
         let features = wall.time(Work::Recognition, || encoder.encode(&clouds, &camera));
-        let features = features.map_err(|message| RecognitionError::Encoder {
+        let features = features.map_err(|source| RecognitionError::Encoder {
             name: self.encoder.name().to_string(),
-            message,
+            source,
         })?;
         Ok(features.into_iter().flatten().collect())
     }

@@ -45,8 +45,9 @@
 //! assert_eq!(round.file_stem(), "round-0000");
 //! ```
 //!
-//! A run records its rounds with [`crate::run::run_trials_recorded`]; `lgdm sim grasp
-//! --record` writes them to `RUN_DIR/rounds/round-NNNN.{mcap,png}`.
+//! A run records its rounds through [`RoundRecorder`], the runner's observer
+//! ([`crate::observe`]); `lgdm sim grasp --record` writes them to
+//! `RUN_DIR/rounds/round-NNNN.{mcap,png}`.
 
 use std::collections::BTreeMap;
 use std::io::Cursor;
@@ -70,10 +71,17 @@ use prost::Message as _;
 use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
 use serde::{Deserialize, Serialize};
 
-use crate::attempt::{Execution, GraspPlan};
+use crate::attempt::Cell;
+use crate::attempt::Execution;
 use crate::camera::{BASKET_RGB, OverviewCamera, SceneFrame, TABLE_RGB};
-use crate::gripper::GripperConfig;
+use crate::camera::{CameraConfig, render_world};
+use crate::captions::{attempt_caption, recognition_caption, recognition_label, round_summary};
+use crate::observe::{GraspShown, ObserverError, RecordCamera, RoundInfo, RunObserver};
+use crate::packing::{BasketChoice, basket_name};
+use crate::recognize::RecognitionRecord;
+use crate::results::{AttemptRecord, RoundRecord};
 use crate::robot::Robot;
+use crate::scenario::PlacedObject;
 use crate::world::{ObjectHandle, StepObserver, World, rapier_to_isometry};
 
 /// The `/tf` topic.
@@ -178,34 +186,6 @@ impl RoundSink for Vec<RoundRecording> {
     fn write_round(&mut self, round: RoundRecording) -> Result<(), RecordError> {
         self.push(round);
         Ok(())
-    }
-}
-
-/// The cameras a recording shows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RecordCamera {
-    /// The fixed overview camera.
-    Overview,
-    /// The per-object close-up camera (moves from look to look).
-    Closeup,
-    /// A camera above the target basket (the outcome of a placement).
-    Basket,
-}
-
-impl RecordCamera {
-    const ALL: [RecordCamera; 3] = [Self::Overview, Self::Closeup, Self::Basket];
-
-    /// `overview`, `closeup`, `basket`: topics `/camera/<name>/…`, frame `camera/<name>`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Overview => "overview",
-            Self::Closeup => "closeup",
-            Self::Basket => "basket",
-        }
-    }
-
-    fn index(self) -> usize {
-        self as usize
     }
 }
 
@@ -442,7 +422,7 @@ impl Recorder {
     /// An attempt begins: publishes the planned grasp on `/grasp` and a start event, and keeps
     /// the storyboard's first panels (the crop with the grasp rectangle, the overview with the
     /// grasp projected).
-    pub(crate) fn grasp_planned(&self, world: &World, shown: &GraspShown<'_>) {
+    pub fn grasp_planned(&self, world: &World, shown: &GraspShown<'_>) {
         let mut rec = lock(&self.shared);
         let t = now_ns(world);
         rec.publish_grasp(t, grasp_entity(shown, None, t));
@@ -484,7 +464,7 @@ impl Recorder {
 
     /// An attempt ended: publishes the frames taken after it (overview, basket), the grasp
     /// coloured by its outcome and an end event; the frames join the storyboard row.
-    pub(crate) fn grasp_done(
+    pub fn grasp_done(
         &self,
         world: &World,
         shown: &GraspShown<'_>,
@@ -512,7 +492,7 @@ impl Recorder {
 
     /// The attempt's record is complete: closes its storyboard row with `caption` (a row with
     /// only the overview when no grasp was tried).
-    pub(crate) fn attempt_recorded(&self, caption: String) {
+    pub fn attempt_recorded(&self, caption: String) {
         let mut rec = lock(&self.shared);
         let mut row = rec.pending.take().unwrap_or_else(|| StoryRow {
             panels: rec
@@ -608,17 +588,6 @@ pub enum LogLevel {
     Info = 2,
     /// A failed attempt.
     Warning = 3,
-}
-
-/// What the recorder shows of a grasp.
-#[derive(Debug, Clone)]
-pub(crate) struct GraspShown<'a> {
-    pub plan: &'a GraspPlan,
-    pub rank: usize,
-    pub object: Option<&'a str>,
-    pub gripper: &'a GripperConfig,
-    /// The crop and the grasp rectangle in crop pixels.
-    pub crop: Option<(&'a lgdm_pointcloud::crop::ObjectCrop, GraspRectangle)>,
 }
 
 impl Recording {
@@ -1273,6 +1242,145 @@ fn compose_storyboard(title: &str, rows: &[StoryRow]) -> RgbImage {
         y += row_height(r);
     }
     img
+}
+
+/// Recording as a [`RunObserver`]: records the rounds `config` selects and hands each, when it
+/// ends, to `sink` (a run directory writes `rounds/round-NNNN.{mcap,png}`).
+pub struct RoundRecorder<'a> {
+    config: &'a RecordConfig,
+    sink: &'a mut dyn RoundSink,
+    cameras: CameraConfig,
+    current: Option<Recorder>,
+}
+
+impl std::fmt::Debug for RoundRecorder<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RoundRecorder")
+            .field("config", self.config)
+            .field("recording", &self.current.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> RoundRecorder<'a> {
+    /// Records with `config` into `sink`; `cameras` renders the views after each attempt (the
+    /// run's cameras). The config is checked here.
+    pub fn new(
+        config: &'a RecordConfig,
+        sink: &'a mut dyn RoundSink,
+        cameras: CameraConfig,
+    ) -> Result<Self, RecordError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            sink,
+            cameras,
+            current: None,
+        })
+    }
+}
+
+impl RunObserver for RoundRecorder<'_> {
+    fn round_started(
+        &mut self,
+        world: &mut World,
+        round: &RoundInfo<'_>,
+    ) -> Result<(), ObserverError> {
+        self.current = None;
+        if self.config.records_round(round.round) {
+            let metadata = BTreeMap::from([
+                ("scenario".to_string(), round.scenario.as_str().to_string()),
+                ("grasp_source".to_string(), round.grasp_source.to_string()),
+                ("seed".to_string(), round.seed.to_string()),
+                ("objects".to_string(), round.objects.to_string()),
+            ]);
+            self.current = Some(Recorder::start(world, self.config, round.round, metadata)?);
+        }
+        Ok(())
+    }
+
+    fn table_set(&mut self, cell: &Cell, objects: &[PlacedObject]) {
+        if let Some(r) = &self.current {
+            r.add_robot(&cell.world, &cell.robot);
+            let names: Vec<&str> = objects.iter().map(|o| o.name.as_str()).collect();
+            r.log(
+                &cell.world,
+                LogLevel::Info,
+                &format!("table set: {}", names.join(", ")),
+            );
+        }
+    }
+
+    fn camera_shot(&mut self, world: &World, camera: RecordCamera, shot: &SceneFrame) {
+        if let Some(r) = &self.current {
+            r.camera_shot(world, camera, shot);
+        }
+    }
+
+    fn recognised(&mut self, world: &World, object: ObjectHandle, record: &RecognitionRecord) {
+        if let Some(r) = &self.current {
+            r.log(world, LogLevel::Info, &recognition_caption(record));
+            r.label_object(world, object, &recognition_label(record));
+        }
+    }
+
+    fn basket_chosen(&mut self, world: &World, c: &BasketChoice) {
+        if let Some(r) = &self.current {
+            r.log(
+                world,
+                LogLevel::Info,
+                &format!(
+                    "packing as {} ({}): {} basket",
+                    c.packed_as.as_deref().unwrap_or("nothing recognised"),
+                    c.decided_by.as_str(),
+                    basket_name(c.basket)
+                ),
+            );
+        }
+    }
+
+    fn grasp_planned(&mut self, world: &World, grasp: &GraspShown<'_>) {
+        if let Some(r) = &self.current {
+            r.grasp_planned(world, grasp);
+        }
+    }
+
+    fn grasp_done(
+        &mut self,
+        cell: &Cell,
+        grasp: &GraspShown<'_>,
+        execution: &Execution,
+        basket: usize,
+    ) -> Result<(), ObserverError> {
+        let Some(r) = &self.current else {
+            return Ok(());
+        };
+        // The outcome as the cameras see it, before the table is reset.
+        let mut after = vec![(
+            RecordCamera::Overview,
+            self.cameras.render_overview(&cell.world)?,
+        )];
+        if let Some(camera) = basket_camera(&cell.world, basket) {
+            let shot = render_world(&cell.world, &camera, self.cameras.draw)?;
+            after.push((RecordCamera::Basket, shot));
+        }
+        r.grasp_done(&cell.world, grasp, execution, &after);
+        Ok(())
+    }
+
+    fn attempt_recorded(&mut self, attempt: &AttemptRecord) {
+        if let Some(r) = &self.current {
+            r.attempt_recorded(attempt_caption(attempt));
+        }
+    }
+
+    fn round_ended(&mut self, world: &mut World, round: &RoundRecord) -> Result<(), ObserverError> {
+        if let Some(recorder) = self.current.take() {
+            let recording = recorder.finish(world, &round_summary(round))?;
+            self.sink.write_round(recording)?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -76,13 +76,14 @@ pub enum SourceError {
     /// The crop is malformed (buffer sizes, non-finite fields).
     #[error("bad crop: {0}")]
     BadCrop(String),
-    /// Any other source's failure (e.g. the network's bridge), with the source's name.
-    #[error("{source_name}: {message}")]
-    Other {
+    /// Any other source's failure (e.g. the network's bridge), with the source's name and the
+    /// error it gave (kept as the source of this one).
+    #[error("the {source_name} source failed")]
+    Failed {
         /// The source.
         source_name: String,
         /// What went wrong.
-        message: String,
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
 }
 

@@ -9,14 +9,15 @@
 
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
-use lgdm_sim::attempt::{
-    AttemptConfig, Cell, FailureReason, GraspPlan, WallTimes, execute, park, plan_grasp,
-};
+use lgdm_sim::attempt::{AttemptConfig, Cell, FailureReason, GraspPlan, execute, park, plan_grasp};
 use lgdm_sim::perception::{Perception, WorldGrasp};
+use lgdm_sim::results::RunResults;
 use lgdm_sim::robot::RobotConfig;
-use lgdm_sim::run::{RunResults, RunSpec, builtin_source, run_trials};
+use lgdm_sim::runner::run_trials;
 use lgdm_sim::scenario::{Scenario, ScenarioConfig, on_table, set_table};
 use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource};
+use lgdm_sim::spec::{RunSpec, builtin_source};
+use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -31,7 +32,7 @@ fn simple_library() -> Vec<ObjectModel> {
 fn run(source: &str, rounds: usize, seed: u64, library: &[ObjectModel]) -> RunResults {
     let spec = RunSpec::new(Scenario::Isolated, rounds, seed);
     let mut source = builtin_source(source, seed).unwrap();
-    run_trials(&spec, library, source.as_mut(), |_| {}).unwrap()
+    run_trials(&spec, library, source.as_mut(), &mut (), |_| {}).unwrap()
 }
 
 #[test]
@@ -40,7 +41,7 @@ fn analytic_grasps_simple_objects_and_beats_random() {
     let analytic = run("analytic", 20, 11, &library);
     let random = run("random", 20, 11, &library);
     let (a, r) = (&analytic.summary, &random.summary);
-    let rate = |s: &lgdm_sim::run::Summary| s.grasp_success_rate.value.unwrap_or(0.0);
+    let rate = |s: &lgdm_sim::results::Summary| s.grasp_success_rate.value.unwrap_or(0.0);
     assert!(a.attempts >= 20, "{} attempts", a.attempts);
     assert!(
         rate(a) >= 0.6,
@@ -108,7 +109,7 @@ fn place_a_can_in(basket: usize) {
     assert_eq!(scene.segments.len(), 1);
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
     assert_eq!(view.object, Some(h));
-    let gripper = lgdm_sim::run::SimConfig::default().grasp_spec();
+    let gripper = lgdm_sim::spec::SimConfig::default().grasp_spec();
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
@@ -273,7 +274,7 @@ fn same_seed_gives_the_same_results_bit_for_bit() {
     let spec = RunSpec::new(Scenario::Packed, 1, 3);
     let go = || {
         let mut s = AnalyticSource::new();
-        run_trials(&spec, &library, &mut s, |_| {}).unwrap()
+        run_trials(&spec, &library, &mut s, &mut (), |_| {}).unwrap()
     };
     assert_eq!(deterministic(&go()), deterministic(&go()));
 }

@@ -11,9 +11,12 @@ use std::collections::BTreeMap;
 
 use foxglove::messages::{CameraCalibration, FrameTransforms, Log, RawImage, SceneUpdate};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library};
+use lgdm_sim::record::RoundRecorder;
 use lgdm_sim::record::{RecordConfig, RoundRecording};
-use lgdm_sim::run::{RunResults, RunSpec, builtin_source, run_trials, run_trials_recorded};
+use lgdm_sim::results::RunResults;
+use lgdm_sim::runner::run_trials;
 use lgdm_sim::scenario::Scenario;
+use lgdm_sim::spec::{RunSpec, builtin_source};
 use prost::Message as _;
 
 fn library() -> Vec<ObjectModel> {
@@ -25,23 +28,28 @@ fn recorded(rounds: usize, seed: u64) -> (RunResults, Vec<RoundRecording>) {
     let spec = RunSpec::new(Scenario::Isolated, rounds, seed);
     let mut source = builtin_source("analytic", seed).unwrap();
     let mut sink: Vec<RoundRecording> = Vec::new();
-    let results = run_trials_recorded(
-        &spec,
-        &library,
-        source.as_mut(),
-        |_| {},
-        &RecordConfig::default(),
-        &mut sink,
-    )
-    .unwrap();
+    let config = RecordConfig::default();
+    let results = run_recorded(&spec, &library, source.as_mut(), &config, &mut sink).unwrap();
     (results, sink)
 }
 
+/// [`run_trials`] with the rounds `config` selects recorded into `sink`.
+fn run_recorded(
+    spec: &RunSpec,
+    library: &[lgdm_pointcloud::objects::ObjectModel],
+    source: &mut dyn lgdm_sim::source::GraspSource,
+    config: &RecordConfig,
+    sink: &mut Vec<RoundRecording>,
+) -> Result<RunResults, lgdm_sim::spec::SimError> {
+    let mut recorder = RoundRecorder::new(config, sink, spec.config.cameras.clone())?;
+    run_trials(spec, library, source, &mut recorder, |_| {})
+}
+
 /// The attempts without their wall-clock times.
-fn deterministic(r: &RunResults) -> Vec<lgdm_sim::run::AttemptRecord> {
+fn deterministic(r: &RunResults) -> Vec<lgdm_sim::results::AttemptRecord> {
     r.attempts
         .iter()
-        .map(|a| lgdm_sim::run::AttemptRecord {
+        .map(|a| lgdm_sim::results::AttemptRecord {
             wall: Default::default(),
             ..a.clone()
         })
@@ -270,7 +278,7 @@ fn recorded_rounds_open_with_foxglove_schemas_and_are_reproducible() {
     let plain = {
         let spec = RunSpec::new(Scenario::Isolated, 2, 0);
         let mut source = builtin_source("analytic", 0).unwrap();
-        run_trials(&spec, &library(), source.as_mut(), |_| {}).unwrap()
+        run_trials(&spec, &library(), source.as_mut(), &mut (), |_| {}).unwrap()
     };
     assert_eq!(deterministic(&results), deterministic(&plain));
 }
@@ -285,15 +293,14 @@ fn first_rounds_limits_what_is_recorded() {
         first_rounds: Some(1),
         ..RecordConfig::default()
     };
-    run_trials_recorded(&spec, &library, source.as_mut(), |_| {}, &config, &mut sink).unwrap();
+    run_recorded(&spec, &library, source.as_mut(), &config, &mut sink).unwrap();
     assert_eq!(sink.len(), 1);
     assert_eq!(sink[0].file_stem(), "round-0000");
     let bad = RecordConfig {
         tf_rate_hz: f64::NAN,
         ..RecordConfig::default()
     };
-    let err =
-        run_trials_recorded(&spec, &library, source.as_mut(), |_| {}, &bad, &mut sink).unwrap_err();
+    let err = run_recorded(&spec, &library, source.as_mut(), &bad, &mut sink).unwrap_err();
     assert!(err.to_string().contains("tf_rate_hz"), "{err}");
 }
 
@@ -314,13 +321,14 @@ fn pick_place_recordings_label_every_recognised_object() {
     .unwrap();
     let mut sink: Vec<RoundRecording> = Vec::new();
     let config = RecordConfig::default();
-    let results = lgdm_sim::run::run_pick_place(
+    let mut recorder = RoundRecorder::new(&config, &mut sink, spec.config.cameras.clone()).unwrap();
+    let results = lgdm_sim::runner::run_pick_place(
         &spec,
         &library,
         source.as_mut(),
         &mut recognizer,
+        &mut recorder,
         |_| {},
-        Some((&config, &mut sink)),
     )
     .unwrap();
     assert_eq!(sink.len(), 3);

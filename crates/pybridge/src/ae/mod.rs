@@ -31,6 +31,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyModule;
 
 pub mod grasps;
+pub mod robot;
 pub mod views;
 
 pub use grasps::{crop_from_input, decode_params};

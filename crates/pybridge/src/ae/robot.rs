@@ -1,8 +1,8 @@
 //! The grasp autoencoder in the robot (cargo feature `ae`): as a [`GraspSource`] for
-//! `lgdm sim grasp|pick-place --grasp network`, and as the recognition's [`ViewEncoder`] for
-//! `lgdm sim pick-place --encoder ae` ([`AeViewEncoder`]: each view through
-//! `lgdm_pybridge::ae::view_features`, the pipeline `lgdm features --encoder ae` runs on a
-//! dataset's views, so a model `lgdm train --encoder ae` made recognises the robot's objects).
+//! `lgdm sim grasp|pick-place --grasp network` ([`NetworkSource`]), and as the recognition's
+//! [`ViewEncoder`] for `lgdm sim pick-place --encoder ae` ([`AeViewEncoder`]: each view through
+//! [`view_features`], the pipeline `lgdm features --encoder ae` runs on a dataset's views, so a
+//! model `lgdm train --encoder ae` made recognises the robot's objects).
 //!
 //! The grasp source: [`NetworkSource`] loads the checkpoint once per run
 //! (`lgdm_pybridge::ae::AutoEncoder`: embedded Python, the venv's numpy, torch and train_ae)
@@ -11,10 +11,10 @@
 //! decoder with the checkpoint's jaw, the grasps moved back to crop pixels — so they carry the
 //! conventions of the analytic source (crop pixels, best first, at most k).
 //!
-//! It lives here, at the one crate that links both sides: `lgdm-sim` (the trait) must not need
-//! torch, and `lgdm-pybridge` (also the Python extension module) should not pull in the
-//! physics. The work itself is in `lgdm_pybridge::ae::grasps`, which needs only
-//! `lgdm-pointcloud`'s types; this adapter only maps errors.
+//! It lives in the bridge, behind the `ae` feature: `lgdm-sim` (the traits) never needs torch,
+//! and any library or Python caller can run network grasps. The work itself is in
+//! [`super::grasps`]; these adapters keep the bridge's errors as the sources of the sim's
+//! ([`SourceError::Failed`], [`lgdm_sim::recognize::RecognitionError::Encoder`]).
 //!
 //! ```ignore
 //! let mut source = NetworkSource::load(&checkpoint)?; // once per run
@@ -23,12 +23,12 @@
 
 use std::path::{Path, PathBuf};
 
+use super::views::table_frame;
+use super::{AeError, AutoEncoder, FEATURE_DIM, view_features};
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::render::{Camera, RgbdFrame};
-use lgdm_pybridge::ae::views::table_frame;
-use lgdm_pybridge::ae::{AeError, AutoEncoder, FEATURE_DIM, view_features};
-use lgdm_sim::recognize::ViewEncoder;
+use lgdm_sim::recognize::{EncoderError, ViewEncoder};
 use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
 
 /// The grasp autoencoder behind [`GraspSource`] (`network`).
@@ -64,9 +64,9 @@ impl GraspSource for NetworkSource {
     ) -> Result<Vec<DecodedGrasp>, SourceError> {
         self.model.crop_grasps(query.crop, k).map_err(|e| match e {
             AeError::Input(message) => SourceError::BadCrop(message),
-            other => SourceError::Other {
+            other => SourceError::Failed {
                 source_name: Self::NAME.into(),
-                message: other.to_string(),
+                source: Box::new(other),
             },
         })
     }
@@ -119,7 +119,7 @@ impl ViewEncoder for AeViewEncoder {
         &mut self,
         views: &[PointCloud],
         camera: &Camera,
-    ) -> Result<Vec<Option<Vec<f32>>>, String> {
+    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError> {
         if views.is_empty() {
             return Ok(Vec::new());
         }
@@ -129,6 +129,6 @@ impl ViewEncoder for AeViewEncoder {
         let (_, table) = self.table.as_ref().expect("set above");
         view_features(&self.model, views, camera, table)
             .map(|rows| rows.into_iter().map(Some).collect())
-            .map_err(|e| e.to_string())
+            .map_err(|e| Box::new(e) as EncoderError)
     }
 }

@@ -1,0 +1,220 @@
+//! The options of `lgdm sim grasp`, `pick-place` and `packing` (clap), and how they name the
+//! library's settings.
+
+use std::path::PathBuf;
+
+use clap::{Args as ClapArgs, Subcommand, ValueEnum};
+use lgdm_sim::scenario::Scenario;
+
+use crate::data::Encoder;
+use crate::progress::ProgressMode;
+
+/// Arguments of `lgdm sim`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// What to run.
+    #[command(subcommand)]
+    pub command: SimCommand,
+}
+
+/// `lgdm sim` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum SimCommand {
+    /// Grasp trials: rounds of a scenario with one grasp source → results.json, summary, plots.
+    Grasp(GraspArgs),
+    /// The paper's pick-and-place: recognise each object with the dual memory (a simulated
+    /// teacher labels what the robot does not know or gets wrong; it learns on the spot, replay
+    /// after each round), grasp it, place it in the left basket.
+    PickPlace(PickPlaceArgs),
+    /// The paper's packing: pick-and-place with recognition where the target categories go to
+    /// the right basket and everything else to the left, by what the robot recognises; success
+    /// only in the basket of the object's true category.
+    Packing(PackingArgs),
+}
+
+/// The scenarios (`--scenario`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScenarioArg {
+    /// One object at a time, up to 3 ranked grasps, reset after a failed try.
+    Isolated,
+    /// 5 objects pushed together.
+    Packed,
+    /// 5 objects dropped in a heap.
+    Pile,
+    /// 5 objects placed apart at random (the paper's pick-and-place table).
+    Scattered,
+}
+
+impl From<ScenarioArg> for Scenario {
+    fn from(s: ScenarioArg) -> Self {
+        match s {
+            ScenarioArg::Isolated => Scenario::Isolated,
+            ScenarioArg::Packed => Scenario::Packed,
+            ScenarioArg::Pile => Scenario::Pile,
+            ScenarioArg::Scattered => Scenario::Scattered,
+        }
+    }
+}
+
+/// The grasp sources (`--grasp`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GraspArg {
+    /// Antipodal grasps from the crop's depth image.
+    Analytic,
+    /// A random object pixel, angle and opening (a baseline).
+    Random,
+    /// The grasp autoencoder (needs a build with `--features ae`).
+    Network,
+}
+
+/// What the cameras draw for an object (`--draw`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DrawArg {
+    /// The object's mesh, as in the dataset (the collider only approximates it).
+    Mesh,
+    /// The physics collider in the mesh's colours (default): the camera sees what the fingers
+    /// meet.
+    Collider,
+}
+
+/// The objects' collider shapes (`--shapes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ShapesArg {
+    /// Each object's convex hull: openings and handles are filled.
+    Hull,
+    /// A convex decomposition (default; VHACD, 0.1–0.5 s per object once): openings stay open.
+    Decomposition,
+}
+
+/// What every robot run takes: the grasp source, the objects, the physics and cameras, the
+/// output, recording and progress.
+#[derive(Debug, ClapArgs)]
+pub struct RobotArgs {
+    /// Where grasps come from.
+    #[arg(long, value_enum, default_value_t = GraspArg::Analytic)]
+    pub grasp: GraspArg,
+    /// Run directory, new or empty: results.json, summary.txt, plots.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Replace the sim run already in `--out` (its files are removed first).
+    #[arg(long)]
+    pub force: bool,
+    /// Use meshes from <DIR>/<category>/<instance>.{obj,stl,ply} instead of procedural objects.
+    #[arg(long, value_name = "DIR")]
+    pub meshes: Option<PathBuf>,
+    /// Units of the --meshes files: `mm`, `cm` or `m` for every file, and/or `FILE=UNIT` for one
+    /// (as `gen-dataset --units`); guessed from the size when not given.
+    #[arg(long, value_name = "[FILE=]UNIT", requires = "meshes")]
+    pub units: Vec<String>,
+    /// What the cameras draw for an object.
+    #[arg(long, value_enum, default_value_t = DrawArg::Collider)]
+    pub draw: DrawArg,
+    /// The objects' collider shapes in the physics.
+    #[arg(long, value_enum, default_value_t = ShapesArg::Decomposition)]
+    pub shapes: ShapesArg,
+    /// Record the rounds for Foxglove: rounds/round-NNNN.mcap and a storyboard
+    /// rounds/round-NNNN.png per round.
+    #[arg(long)]
+    pub record: bool,
+    /// Record only the first N rounds (implies --record).
+    #[arg(long, value_name = "N")]
+    pub record_rounds: Option<usize>,
+    /// How to show progress.
+    #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
+    pub progress: ProgressMode,
+    /// The autoencoder's checkpoint for --grasp network and pick-place's --encoder ae
+    /// (default: the one shipped with train_ae, `weights/cpu.pt`).
+    #[arg(long, value_name = "PATH")]
+    pub ae_checkpoint: Option<PathBuf>,
+}
+
+/// Arguments of `lgdm sim grasp`.
+#[derive(Debug, ClapArgs)]
+pub struct GraspArgs {
+    /// How the table is set.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::Isolated)]
+    pub scenario: ScenarioArg,
+    /// Rounds to play (isolated: one object each; packed, pile and scattered: 5 objects each).
+    #[arg(long, default_value_t = 10)]
+    pub rounds: usize,
+    /// Base seed: object poses, clutter draws, the random source and the procedural instances.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Procedural instances per category (default 5: 50 objects).
+    #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
+    pub instances: usize,
+    /// Source, objects, output, recording.
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// Arguments of `lgdm sim pick-place`.
+#[derive(Debug, ClapArgs)]
+pub struct PickPlaceArgs {
+    /// How the table is set: scattered (5 objects apart at random, the paper's table; default),
+    /// packed (pushed together) or pile.
+    #[arg(long, value_enum, default_value_t = ScenarioArg::Scattered)]
+    pub scenario: ScenarioArg,
+    /// Rounds to play (5 objects each; default when --attempts is not given either: 10 for
+    /// pick-place, 50 for packing).
+    #[arg(long)]
+    pub rounds: Option<usize>,
+    /// Stop after this many grasp attempts (750 gives the paper's shape).
+    #[arg(long)]
+    pub attempts: Option<usize>,
+    /// Base seed: object poses, the rounds' draws, the random source, the views.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The object set: the first N objects taken category by category in turn (the first
+    /// instance of every category, then the second, …; 15: the paper's set).
+    #[arg(long, default_value_t = 15)]
+    pub objects: usize,
+    /// Seed of the procedural instances (default 0: the embedded dataset's and `gen-dataset`'s
+    /// default, so a model trained on it knows these objects).
+    #[arg(long, default_value_t = 0, conflicts_with = "meshes")]
+    pub object_seed: u64,
+    /// Start from this model (`lgdm train`'s model-trial<t>.lgdm, or a pick-place run's
+    /// model.lgdm) instead of an empty one; its label names come from the run record beside it.
+    #[arg(long, value_name = "CKPT")]
+    pub model: Option<PathBuf>,
+    /// No intrinsic replay after each round.
+    #[arg(long)]
+    pub no_replay: bool,
+    /// Learn every object met, also the ones the robot knew (its own labels), not only the
+    /// teacher's lessons: more learning in the loop, hence more that could be forgotten.
+    #[arg(long)]
+    pub learn_always: bool,
+    /// The features recognition uses: good (GOOD, 675 values) or ae (the grasp autoencoder's
+    /// 256-d feature; an `ae` build). A --model must have been trained with the same encoder.
+    #[arg(long, value_enum, default_value_t = Encoder::Good)]
+    pub encoder: Encoder,
+    /// Below this share of agreeing views the robot says "I don't know this" (0..=1).
+    #[arg(long, default_value_t = 0.6)]
+    pub confidence: f64,
+    /// Categories arrive over time: rounds before K show only the first half of the object
+    /// set's categories, rounds from K on only the rest; at the end, the model's first guess
+    /// about every object from fresh views, no teacher (results.json:
+    /// early_category_accuracy_at_end). Compare with and without --no-replay.
+    #[arg(long, value_name = "K")]
+    pub arrive_after: Option<usize>,
+    /// Source, objects, output, recording.
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// Arguments of `lgdm sim packing`: pick-place's, and the target categories.
+#[derive(Debug, ClapArgs)]
+pub struct PackingArgs {
+    /// The target categories, comma-separated (e.g. mug,can): packed into the right basket;
+    /// every other category into the left one.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        value_name = "CATEGORIES"
+    )]
+    pub targets: Vec<String>,
+    /// Everything pick-place takes.
+    #[command(flatten)]
+    pub run: PickPlaceArgs,
+}

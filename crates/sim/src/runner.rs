@@ -1,0 +1,852 @@
+//! Playing a run: rounds of a [`Scenario`] with one [`GraspSource`], every attempt recorded.
+//!
+//! [`run_trials`] plays `rounds` rounds (round r seeded with `derive_seed(seed, …, r)`, so the
+//! same seed gives the same rounds): set the table ([`crate::scenario`]), look with the overview
+//! camera, take a close-up crop per object ([`crate::perception`]), ask the source for ranked
+//! grasps, and run attempts ([`crate::attempt`]) until the round ends. It returns
+//! [`RunResults`] ([`crate::results`]).
+//!
+//! [`run_pick_place`] adds recognition in the loop ([`crate::recognize`]): before each attempt
+//! the object aimed at is recognised (once per object and round) and taught when the robot did
+//! not know it or was wrong, with replay after each round. Two policies attach to it: with
+//! [`RunSpec::packing`] each object goes to the basket of the category the robot recognises it
+//! as and is judged against its true one ([`crate::packing`]; the basket is chosen once per
+//! attempt), with [`RunSpec::arrival`] the categories arrive over time and the run ends with the
+//! model's first guess about every object ([`crate::arrival`]). Everything else that watches a
+//! run — recording, for one — is a [`RunObserver`] the runner calls at each event
+//! ([`crate::observe`]); the results are the same with any observer.
+//!
+//! Progress is reported after every attempt and every round as a [`Progress`] of `attempts`
+//! (when the run has an attempt budget) or of `rounds`.
+//!
+//! The whole job — objects, model, run directory — is one call of [`crate::job`]; these are
+//! its parts.
+//!
+//! ```no_run
+//! use lgdm_pointcloud::objects::{CATEGORIES, procedural_library};
+//! use lgdm_sim::runner::run_trials;
+//! use lgdm_sim::scenario::Scenario;
+//! use lgdm_sim::source::AnalyticSource;
+//! use lgdm_sim::spec::RunSpec;
+//! let library = procedural_library(&CATEGORIES, 5, 0).unwrap();
+//! let spec = RunSpec::new(Scenario::Isolated, 10, 0);
+//! let results = run_trials(&spec, &library, &mut AnalyticSource::new(), &mut (), |_| {}).unwrap();
+//! println!("grasp success {}", results.summary.grasp_success_rate.describe());
+//! ```
+
+use std::time::Instant;
+
+use lgdm_base::Progress;
+use lgdm_base::seed::derive_seed;
+use lgdm_pointcloud::grasp::GraspSpec;
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pointcloud::math::Pose;
+use lgdm_pointcloud::objects::ObjectModel;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::arrival::ArrivalRun;
+use crate::attempt::{AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp};
+use crate::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
+use crate::packing::BasketChoice;
+use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
+use crate::recognize::{MemoryPoint, RecognitionRecord, Recognizer};
+use crate::results::{
+    AttemptRecord, GraspRecord, PoseRecord, RESULTS_FORMAT_VERSION, RecognitionRun, RoundEnd,
+    RoundRecord, RunInfo, RunResults, RunWall, summarize,
+};
+use crate::scenario::{PlacedObject, Scenario, on_table, round_objects_among, set_table};
+use crate::shapes::LibraryShapes;
+use crate::source::{GraspQuery, GraspSource};
+use crate::spec::{RunSpec, SimError, TAG_ROUND};
+use crate::timing::{WallTimes, Work};
+use crate::world::{ObjectHandle, World};
+
+/// Plays `spec.rounds` rounds of `spec.scenario` on `library` with `source`, telling `observer`
+/// what happens and calling `on_progress` after every attempt and round. Checks the spec
+/// ([`RunSpec::validate`]) before the first round.
+pub fn run_trials(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    source: &mut dyn GraspSource,
+    observer: &mut dyn RunObserver,
+    on_progress: impl FnMut(Progress),
+) -> Result<RunResults, SimError> {
+    play(spec, library, source, None, observer, on_progress)
+}
+
+/// Pick-and-place with lifelong recognition: rounds as [`run_trials`] plays them, where before
+/// each attempt the object aimed at is recognised by `recognizer` (see the module docs). The
+/// recognizer keeps the model it learnt; the results hold every recognition, the first-guess
+/// accuracy, the teacher interventions and the node counts after each round.
+pub fn run_pick_place(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    source: &mut dyn GraspSource,
+    recognizer: &mut Recognizer,
+    observer: &mut dyn RunObserver,
+    on_progress: impl FnMut(Progress),
+) -> Result<RunResults, SimError> {
+    play(
+        spec,
+        library,
+        source,
+        Some(recognizer),
+        observer,
+        on_progress,
+    )
+}
+
+/// A grasp candidate on one view.
+struct Candidate {
+    view: usize,
+    rank: usize,
+    crop: DecodedGrasp,
+    world: WorldGrasp,
+}
+
+/// What the attempt in progress knows beyond its grasp: the recognition of the object aimed at
+/// and, packing, the basket chosen from it.
+struct Decision {
+    recognition: Option<RecognitionRecord>,
+    basket: Option<BasketChoice>,
+}
+
+impl Decision {
+    /// An attempt that recognised nothing (nothing seen, no grasp): packing, the basket of
+    /// nothing recognised.
+    fn nothing(spec: &RunSpec) -> Self {
+        Self {
+            recognition: None,
+            basket: spec.packing.as_ref().map(|p| p.choose(None)),
+        }
+    }
+}
+
+struct Runner<'a, F: FnMut(Progress)> {
+    spec: &'a RunSpec,
+    library: &'a [ObjectModel],
+    source: &'a mut dyn GraspSource,
+    perception: Perception,
+    gripper: GraspSpec,
+    shapes: LibraryShapes,
+    attempts: Vec<AttemptRecord>,
+    rounds_done: usize,
+    on_progress: F,
+    observer: &'a mut dyn RunObserver,
+    /// Recognition in the loop (pick-and-place), when on.
+    recognizer: Option<&'a mut Recognizer>,
+    /// Node counts after each round (with a recognizer).
+    memory: Vec<MemoryPoint>,
+    /// Seconds of the rounds' end (replay).
+    replay_s: f64,
+    /// The round's recognitions so far, by object.
+    recognised: Vec<(ObjectHandle, RecognitionRecord)>,
+}
+
+/// The timer and counters of one attempt in progress.
+struct AttemptClock {
+    start: Instant,
+    sim_start_s: f64,
+    wall: WallTimes,
+}
+
+impl AttemptClock {
+    fn start(world: &World) -> Self {
+        Self {
+            start: Instant::now(),
+            sim_start_s: world.time_s(),
+            wall: WallTimes::default(),
+        }
+    }
+}
+
+/// An attempt that tried no grasp.
+fn no_grasp() -> Execution {
+    Execution {
+        reason: Some(FailureReason::NoGraspFound),
+        ..Execution::default()
+    }
+}
+
+impl<F: FnMut(Progress)> Runner<'_, F> {
+    fn progress(&mut self) {
+        let p = match self.spec.max_attempts {
+            Some(max) => Progress {
+                stage: "attempts",
+                done: self.attempts.len() as u64,
+                total: max as u64,
+            },
+            None => Progress {
+                stage: "rounds",
+                done: self.rounds_done as u64,
+                total: self.spec.rounds as u64,
+            },
+        };
+        (self.on_progress)(p);
+    }
+
+    fn look(&mut self, cell: &Cell, clock: &mut AttemptClock) -> Result<SceneView, SimError> {
+        let shot = clock.wall.time(Work::Render, || {
+            self.perception.config().render_overview(&cell.world)
+        });
+        let shot = shot.map_err(PerceptionError::from)?;
+        self.observer
+            .camera_shot(&cell.world, RecordCamera::Overview, &shot);
+        Ok(clock
+            .wall
+            .time(Work::Perception, || self.perception.segment_scene(shot))?)
+    }
+
+    /// The close-up of segment `index`; `None` when it shows nothing usable.
+    fn close_up(
+        &mut self,
+        cell: &Cell,
+        scene: &SceneView,
+        index: usize,
+        clock: &mut AttemptClock,
+    ) -> Result<Option<ObjectView>, SimError> {
+        let Ok(point) = self.perception.table_point_m(scene, index) else {
+            return Ok(None);
+        };
+        let shot = clock.wall.time(Work::Render, || {
+            self.perception.config().render_closeup(&cell.world, point)
+        });
+        let shot = shot.map_err(PerceptionError::from)?;
+        self.observer
+            .camera_shot(&cell.world, RecordCamera::Closeup, &shot);
+        match clock.wall.time(Work::Perception, || {
+            self.perception.view_from(shot, index, point)
+        }) {
+            Ok(view) => Ok(Some(view)),
+            Err(PerceptionError::NothingInCloseup { .. } | PerceptionError::Crop(_)) => Ok(None),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// The source's ranked grasps on `view` that can be placed in the world.
+    fn candidates(
+        &mut self,
+        view: &ObjectView,
+        view_index: usize,
+        clock: &mut AttemptClock,
+    ) -> Result<Vec<Candidate>, SimError> {
+        let k = self.spec.config.scenario.ranked_grasps;
+        let query = GraspQuery {
+            crop: &view.crop,
+            intrinsics: &view.shot.camera.intrinsics,
+            gripper: &self.gripper,
+        };
+        let source = &mut *self.source;
+        let grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
+        let decode = &self.spec.config.attempt.decode;
+        Ok(clock.wall.time(Work::Perception, || {
+            grasps
+                .iter()
+                .take(k)
+                .enumerate()
+                .filter_map(|(rank, g)| {
+                    view.grasp_in_world(g, decode).ok().map(|world| Candidate {
+                        view: view_index,
+                        rank,
+                        crop: *g,
+                        world,
+                    })
+                })
+                .collect()
+        }))
+    }
+
+    /// Adds the record of an attempt at `target` (the object aimed at) that tried `grasp`.
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &mut self,
+        cell: &Cell,
+        (round, try_in_round): (usize, usize),
+        objects: &[PlacedObject],
+        target: Option<ObjectHandle>,
+        grasp: Option<GraspRecord>,
+        exec: Execution,
+        target_pose: Option<Pose>,
+        decision: Decision,
+        mut clock: AttemptClock,
+    ) {
+        let find = |h: ObjectHandle| objects.iter().find(|o| o.handle == h);
+        let aimed = target.and_then(find);
+        let grasped = exec
+            .pinched_object
+            .filter(|h| Some(*h) != target)
+            .and_then(find)
+            .map(|o| o.name.clone());
+        // Packing: the basket the attempt carried to, judged against the true category of the
+        // object carried. Attempts at no object (nothing seen, no grasp anywhere) carry no
+        // packing record.
+        let (packing, reason) = match (&self.spec.packing, decision.basket) {
+            (Some(spec), Some(choice)) if target.is_some() || grasp.is_some() => {
+                let carried = exec.pinched_object.or(target).and_then(find);
+                let (record, reason) = crate::packing::judge(
+                    spec,
+                    choice,
+                    carried.map(|o| o.category.as_str()),
+                    exec.placement_success,
+                    exec.reason,
+                );
+                (Some(record), reason)
+            }
+            _ => (None, exec.reason),
+        };
+        clock.wall.finish(clock.start);
+        self.attempts.push(AttemptRecord {
+            index: self.attempts.len(),
+            round,
+            try_in_round,
+            object: aimed.map(|o| o.name.clone()),
+            category: aimed.map(|o| o.category.clone()),
+            object_pose: target_pose.as_ref().map(PoseRecord::from),
+            grasped_object: grasped,
+            grasp,
+            grasp_success: exec.grasp_success,
+            contact_only_success: exec.contact_only_success,
+            placement_success: exec.placement_success,
+            reason,
+            recognition: decision.recognition,
+            packing,
+            measured: exec.measured,
+            sim_time_s: cell.world.time_s() - clock.sim_start_s,
+            wall: clock.wall,
+        });
+        if let Some(a) = self.attempts.last() {
+            self.observer.attempt_recorded(a);
+        }
+        self.progress();
+    }
+
+    /// What the robot makes of `target` before it grasps it: recognition in the loop (the first
+    /// guess, once per object and round — later attempts at it repeat that record — and the
+    /// teacher's lesson when needed) and, packing, the basket chosen from it. Nothing to
+    /// recognise without a recognizer or a known target.
+    fn decide(
+        &mut self,
+        cell: &Cell,
+        target: Option<ObjectHandle>,
+        objects: &[PlacedObject],
+        clock: &mut AttemptClock,
+    ) -> Result<Decision, SimError> {
+        let recognition = self.recognise(cell, target, objects, clock)?;
+        let basket = self
+            .spec
+            .packing
+            .as_ref()
+            .map(|p| p.choose(recognition.as_ref()));
+        Ok(Decision {
+            recognition,
+            basket,
+        })
+    }
+
+    fn recognise(
+        &mut self,
+        cell: &Cell,
+        target: Option<ObjectHandle>,
+        objects: &[PlacedObject],
+        clock: &mut AttemptClock,
+    ) -> Result<Option<RecognitionRecord>, SimError> {
+        let (Some(recognizer), Some(h)) = (self.recognizer.as_deref_mut(), target) else {
+            return Ok(None);
+        };
+        let Some(object) = objects.iter().find(|o| o.handle == h) else {
+            return Ok(None);
+        };
+        if let Some((_, earlier)) = self.recognised.iter().find(|(k, _)| *k == h) {
+            return Ok(Some(RecognitionRecord {
+                first_look: false,
+                ..earlier.clone()
+            }));
+        }
+        let instance = &self.library[object.library_index].name;
+        let record =
+            recognizer.encounter(&cell.world, h, &object.category, instance, &mut clock.wall)?;
+        self.observer.recognised(&cell.world, h, &record);
+        self.recognised.push((h, record.clone()));
+        Ok(Some(record))
+    }
+
+    /// Whether the run's attempt budget is spent.
+    fn budget_spent(&self) -> bool {
+        self.spec
+            .max_attempts
+            .is_some_and(|max| self.attempts.len() >= max)
+    }
+
+    /// Tries `candidate` from `views`, carrying to the basket `decision` chose (else the
+    /// config's); parks the arm after.
+    fn attempt(
+        &mut self,
+        cell: &mut Cell,
+        views: &[ObjectView],
+        candidate: &Candidate,
+        decision: &Decision,
+        clock: &mut AttemptClock,
+    ) -> Result<(Option<ObjectHandle>, GraspRecord, Execution), SimError> {
+        let view = &views[candidate.view];
+        let spec = self.spec;
+        let packing_cfg;
+        let cfg = match &decision.basket {
+            Some(c) if c.basket != spec.config.attempt.target_basket => {
+                packing_cfg = AttemptConfig {
+                    target_basket: c.basket,
+                    ..spec.config.attempt.clone()
+                };
+                &packing_cfg
+            }
+            _ => &spec.config.attempt,
+        };
+        if let Some(c) = &decision.basket {
+            self.observer.basket_chosen(&cell.world, c);
+        }
+        let plan = clock.wall.time(Work::Planning, || {
+            plan_grasp(cell, view, &candidate.world, cfg)
+        });
+        let object = view
+            .object
+            .and_then(|h| cell.world.object_name(h).ok())
+            .map(str::to_string);
+        let gripper = cell.robot.gripper().config().clone();
+        let shown = GraspShown {
+            plan: &plan,
+            rank: candidate.rank,
+            object: object.as_deref(),
+            gripper: &gripper,
+            crop: Some((&view.crop, candidate.crop.rectangle())),
+        };
+        self.observer.grasp_planned(&cell.world, &shown);
+        let exec = execute(cell, &plan, view.object, cfg, &mut clock.wall)?;
+        park(cell, plan.pregrasp_z_m, cfg, &mut clock.wall)?;
+        self.observer
+            .grasp_done(cell, &shown, &exec, cfg.target_basket)
+            .map_err(SimError::Observer)?;
+        let record = GraspRecord {
+            rank: candidate.rank,
+            crop: candidate.crop,
+            plan,
+        };
+        Ok((view.object, record, exec))
+    }
+
+    fn round(&mut self, round: usize) -> Result<(RoundRecord, f64), SimError> {
+        let round_start = Instant::now();
+        let cfg = &self.spec.config;
+        let scenario = self.spec.scenario;
+        let mut rng = round_rng(self.spec, round);
+        let picks = round_picks(self.spec, self.library, round, &mut rng);
+        let setup_start = Instant::now();
+        let mut world = World::new(cfg.world.clone())?;
+        let info = RoundInfo {
+            round,
+            scenario,
+            grasp_source: self.source.name(),
+            seed: self.spec.seed,
+            objects: &self.spec.objects,
+        };
+        self.observer
+            .round_started(&mut world, &info)
+            .map_err(SimError::Observer)?;
+        let objects = set_table(
+            &mut world,
+            scenario,
+            self.library,
+            &mut self.shapes,
+            &picks,
+            &cfg.scenario,
+            &mut rng,
+        )?;
+        let mut cell = Cell::at_ready(world, cfg.robot.clone(), &cfg.attempt)?;
+        self.observer.table_set(&cell, &objects);
+        let setup_s = setup_start.elapsed().as_secs_f64();
+        let sim_start = cell.world.time_s();
+        let first_attempt = self.attempts.len();
+        self.recognised.clear();
+        let mut placed = 0usize;
+        let mut left_table = Vec::new();
+        let ended_by = match scenario {
+            Scenario::Isolated => self.isolated(&mut cell, round, &objects, &mut placed)?,
+            Scenario::Packed | Scenario::Pile | Scenario::Scattered => {
+                self.clutter(&mut cell, round, &objects, &mut placed, &mut left_table)?
+            }
+        };
+        let mut wall = WallTimes::default();
+        for a in &self.attempts[first_attempt..] {
+            wall.add(&a.wall);
+        }
+        if let Some(recognizer) = self.recognizer.as_deref_mut() {
+            let start = Instant::now();
+            let point = recognizer.end_round(&mut wall)?;
+            self.replay_s += start.elapsed().as_secs_f64();
+            self.memory.push(point);
+        }
+        wall.finish(round_start);
+        let record = RoundRecord {
+            round,
+            objects: objects.iter().map(|o| o.name.clone()).collect(),
+            attempts: self.attempts.len() - first_attempt,
+            placed,
+            left_table,
+            ended_by,
+            sim_time_s: cell.world.time_s() - sim_start,
+            wall,
+        };
+        self.observer
+            .round_ended(&mut cell.world, &record)
+            .map_err(SimError::Observer)?;
+        Ok((record, setup_s))
+    }
+
+    /// A round of the isolated table: one object, its ranked grasps tried in turn, the object
+    /// put back where it rested after each failed try.
+    fn isolated(
+        &mut self,
+        cell: &mut Cell,
+        round: usize,
+        objects: &[PlacedObject],
+        placed: &mut usize,
+    ) -> Result<RoundEnd, SimError> {
+        let object = &objects[0];
+        let mut clock = AttemptClock::start(&cell.world);
+        let scene = self.look(cell, &mut clock)?;
+        let view = match scene.segments.is_empty() {
+            true => None,
+            // The largest segment: the object (the isolated table holds one).
+            false => self.close_up(cell, &scene, 0, &mut clock)?,
+        };
+        let pose = cell.world.object_pose(object.handle).ok();
+        let Some(view) = view else {
+            let at = Some(object.handle);
+            self.record(
+                cell,
+                (round, 0),
+                objects,
+                at,
+                None,
+                no_grasp(),
+                pose,
+                Decision::nothing(self.spec),
+                clock,
+            );
+            return Ok(RoundEnd::NothingSeen);
+        };
+        let candidates = self.candidates(&view, 0, &mut clock)?;
+        let aimed = view.object.or(Some(object.handle));
+        if candidates.is_empty() {
+            self.record(
+                cell,
+                (round, 0),
+                objects,
+                aimed,
+                None,
+                no_grasp(),
+                pose,
+                Decision::nothing(self.spec),
+                clock,
+            );
+            return Ok(RoundEnd::GraspsExhausted);
+        }
+        let views = [view];
+        let mut first = Some(clock);
+        for (i, candidate) in candidates.iter().enumerate() {
+            if self.budget_spent() {
+                return Ok(RoundEnd::AttemptBudget);
+            }
+            let mut clock = first
+                .take()
+                .unwrap_or_else(|| AttemptClock::start(&cell.world));
+            let pose = cell.world.object_pose(object.handle).ok();
+            let decision = self.decide(cell, aimed, objects, &mut clock)?;
+            let (target, grasp, exec) =
+                self.attempt(cell, &views, candidate, &decision, &mut clock)?;
+            let done = exec.placement_success;
+            if done {
+                *placed += 1;
+                cell.world.remove_object(object.handle)?;
+            } else {
+                // Put the object back where it rested.
+                clock.wall.time(Work::Physics, || {
+                    cell.world
+                        .reset_object_pose(object.handle, &object.rest_pose)
+                        .map(|()| cell.world.settle())
+                })?;
+            }
+            let at = target.or(Some(object.handle));
+            self.record(
+                cell,
+                (round, i),
+                objects,
+                at,
+                Some(grasp),
+                exec,
+                pose,
+                decision,
+                clock,
+            );
+            if done {
+                return Ok(RoundEnd::Cleared);
+            }
+        }
+        Ok(RoundEnd::GraspsExhausted)
+    }
+
+    /// A round of a cluttered table: until it is clear, the best grasp over every object's
+    /// close-up (after `k` failures in a row the `k`-th best), until too many failures in a
+    /// row, the per-round cap or the run's budget.
+    fn clutter(
+        &mut self,
+        cell: &mut Cell,
+        round: usize,
+        objects: &[PlacedObject],
+        placed: &mut usize,
+        left_table: &mut Vec<String>,
+    ) -> Result<RoundEnd, SimError> {
+        let cfg = self.spec.config.scenario.clone();
+        let mut consecutive = 0usize;
+        let mut tries = 0usize;
+        loop {
+            // Objects that left the table (knocked off, dropped in a basket) leave the round.
+            let live: Vec<ObjectHandle> = cell.world.objects().collect();
+            for h in live {
+                if !on_table(&cell.world, h)? {
+                    if let Some(o) = objects.iter().find(|o| o.handle == h) {
+                        left_table.push(o.name.clone());
+                    }
+                    cell.world.remove_object(h)?;
+                }
+            }
+            if cell.world.objects().next().is_none() {
+                return Ok(RoundEnd::Cleared);
+            }
+            if consecutive >= cfg.max_consecutive_failures {
+                return Ok(RoundEnd::ConsecutiveFailures);
+            }
+            if tries >= cfg.max_attempts_per_round {
+                return Ok(RoundEnd::AttemptCap);
+            }
+            if self.budget_spent() {
+                return Ok(RoundEnd::AttemptBudget);
+            }
+            let mut clock = AttemptClock::start(&cell.world);
+            let (views, candidates) = self.survey(cell, &mut clock)?;
+            tries += 1;
+            let at = (round, tries - 1);
+            let Some(candidate) =
+                candidates.get(consecutive.min(candidates.len().saturating_sub(1)))
+            else {
+                self.record(
+                    cell,
+                    at,
+                    objects,
+                    None,
+                    None,
+                    no_grasp(),
+                    None,
+                    Decision::nothing(self.spec),
+                    clock,
+                );
+                consecutive += 1;
+                continue;
+            };
+            let target = views[candidate.view].object;
+            let pose = target.and_then(|h| cell.world.object_pose(h).ok());
+            let decision = self.decide(cell, target, objects, &mut clock)?;
+            let (target, grasp, exec) =
+                self.attempt(cell, &views, candidate, &decision, &mut clock)?;
+            if exec.placement_success {
+                *placed += 1;
+                consecutive = 0;
+                if let Some(h) = exec.pinched_object {
+                    cell.world.remove_object(h)?;
+                }
+            } else {
+                consecutive += 1;
+            }
+            clock.wall.time(Work::Physics, || cell.world.settle());
+            self.record(
+                cell,
+                at,
+                objects,
+                target,
+                Some(grasp),
+                exec,
+                pose,
+                decision,
+                clock,
+            );
+        }
+    }
+
+    /// One look at a cluttered table: a close-up of every segment and the source's grasps on
+    /// each, best first (ties by view, then rank).
+    fn survey(
+        &mut self,
+        cell: &Cell,
+        clock: &mut AttemptClock,
+    ) -> Result<(Vec<ObjectView>, Vec<Candidate>), SimError> {
+        let scene = self.look(cell, clock)?;
+        let mut views = Vec::new();
+        let mut candidates = Vec::new();
+        for index in 0..scene.segments.len() {
+            if let Some(view) = self.close_up(cell, &scene, index, clock)? {
+                candidates.extend(self.candidates(&view, views.len(), clock)?);
+                views.push(view);
+            }
+        }
+        candidates.sort_by(|a, b| {
+            b.world
+                .quality
+                .total_cmp(&a.world.quality)
+                .then(a.view.cmp(&b.view))
+                .then(a.rank.cmp(&b.rank))
+        });
+        Ok((views, candidates))
+    }
+}
+
+fn play(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    source: &mut dyn GraspSource,
+    recognizer: Option<&mut Recognizer>,
+    observer: &mut dyn RunObserver,
+    on_progress: impl FnMut(Progress),
+) -> Result<RunResults, SimError> {
+    let start = Instant::now();
+    spec.validate(library, recognizer.as_deref().map(Recognizer::labels))?;
+    let perception = Perception::new(spec.config.cameras.clone())?;
+    let mut arrival = spec.arrival.as_ref().map(|a| {
+        let at = spec.config.scenario.clutter_center_xy_m;
+        ArrivalRun::new(a, &spec.config.world, library, at, spec.seed)
+    });
+    let mut runner = Runner {
+        spec,
+        library,
+        gripper: spec.config.grasp_spec(),
+        shapes: LibraryShapes::new(spec.config.shapes.clone(), library.len()),
+        source,
+        perception,
+        attempts: Vec::new(),
+        rounds_done: 0,
+        on_progress,
+        observer,
+        memory: recognizer.iter().map(|r| r.memory_point()).collect(),
+        recognizer,
+        replay_s: 0.0,
+        recognised: Vec::new(),
+    };
+    // Decompose every object the rounds will show ahead, in parallel (the picks are the
+    // rounds' first draws; the same seeds draw them again in each round).
+    let used: Vec<usize> = (0..spec.rounds)
+        .flat_map(|round| round_picks(spec, library, round, &mut round_rng(spec, round)))
+        .collect();
+    runner.shapes.prepare(library, &used);
+    let mut rounds = Vec::with_capacity(spec.rounds);
+    let (mut setup_s, mut sim_s) = (0.0, 0.0);
+    for r in 0..spec.rounds {
+        if runner.budget_spent() {
+            break;
+        }
+        if let (Some(a), Some(recognizer)) = (&mut arrival, runner.recognizer.as_deref_mut()) {
+            a.before_round(r, recognizer)?;
+        }
+        let (record, setup) = runner.round(r)?;
+        setup_s += setup;
+        sim_s += record.sim_time_s;
+        rounds.push(record);
+        runner.rounds_done = r + 1;
+        runner.progress();
+    }
+    let (arrival_evaluation, evaluation_s) = match (arrival, runner.recognizer.as_deref_mut()) {
+        (Some(a), Some(r)) => {
+            let (e, s) = a.finish(r, rounds.len())?;
+            (Some(e), s)
+        }
+        _ => (None, 0.0),
+    };
+    let recognition = runner.recognizer.as_deref().map(|r| RecognitionRun {
+        encoder: r.encoder_name().to_string(),
+        start_model: r.origin().to_string(),
+        config: r.config().clone(),
+        labels: r.labels().clone(),
+        memory: runner.memory.clone(),
+    });
+    let attempts = runner.attempts;
+    let mut summary = summarize(&attempts, &rounds, spec.packing.is_some());
+    if let Some(e) = &arrival_evaluation {
+        summary.early_category_accuracy_at_end = Some(e.at_end.early_category_accuracy);
+        summary.early_instance_accuracy_at_end = Some(e.at_end.early_instance_accuracy);
+        summary.early_category_accuracy_at_switch =
+            e.at_switch.as_ref().map(|s| s.early_category_accuracy);
+    }
+    let mut attempt_wall = WallTimes::default();
+    for a in &attempts {
+        attempt_wall.add(&a.wall);
+    }
+    let total_s = start.elapsed().as_secs_f64();
+    Ok(RunResults {
+        format_version: RESULTS_FORMAT_VERSION,
+        run: RunInfo {
+            scenario: spec.scenario,
+            grasp_source: runner.source.name().to_string(),
+            grasp_source_detail: runner.source.describe(),
+            rounds: rounds.len(),
+            seed: spec.seed,
+            objects: spec.objects.clone(),
+            library_size: library.len(),
+            packing: spec.packing.clone(),
+            arrival: spec.arrival.clone(),
+        },
+        summary,
+        wall: RunWall {
+            total_s,
+            setup_s,
+            attempts: attempt_wall,
+            per_attempt_s: attempt_wall.total_s / attempts.len().max(1) as f64,
+            real_time_factor: if total_s > 0.0 { sim_s / total_s } else { 0.0 },
+            replay_s: runner.replay_s,
+            evaluation_s,
+        },
+        attempts,
+        rounds,
+        config: spec.config.clone(),
+        recognition,
+        arrival_evaluation,
+    })
+}
+
+/// The library indices of round `round`'s objects: drawn from the whole library, or from the
+/// categories of the round's stage when they arrive over time.
+fn round_picks(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    round: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<usize> {
+    let pool: Vec<usize> = match &spec.arrival {
+        Some(a) => a.pool(library, round),
+        None => (0..library.len()).collect(),
+    };
+    round_objects_among(
+        spec.scenario,
+        library,
+        &pool,
+        round,
+        &spec.config.scenario,
+        rng,
+    )
+}
+
+/// The random stream of round `round`: it draws the round's objects, then their poses.
+fn round_rng(spec: &RunSpec, round: usize) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(derive_seed(
+        spec.seed,
+        TAG_ROUND,
+        round as u64,
+        spec.scenario as u64,
+    ))
+}
