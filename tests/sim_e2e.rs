@@ -18,7 +18,7 @@ use std::process::Output;
 #[path = "common/mod.rs"]
 mod common;
 use common::{
-    assert_plot, assert_rate, assert_storyboard, check, lgdm, rate_counts, read_results,
+    assert_grasp_plots, assert_rate, assert_storyboard, check, lgdm, rate_counts, read_results,
     without_wall,
 };
 
@@ -164,38 +164,6 @@ fn check_schema(r: &Value, scenario: &str, source: &str, rounds: u64) {
     );
 }
 
-/// The plots of a sim grasp run show its data: a bar for every category with a grasp success
-/// and for every failure reason that occurred, in as many colours as those bars use (the bars,
-/// in the results' order, cycle through the plots' 6 colours).
-fn check_plots(dir: &Path, r: &Value) {
-    let colours_of_nonzero = |values: Vec<u64>| -> usize {
-        let used: std::collections::BTreeSet<usize> = values
-            .iter()
-            .enumerate()
-            .filter(|(_, v)| **v > 0)
-            .map(|(i, _)| i % 6)
-            .collect();
-        used.len()
-    };
-    let s = &r["summary"];
-    let per_category = s["per_category"].as_object().unwrap();
-    let succeeded = per_category
-        .values()
-        .map(|c| c["grasp_success_rate"]["successes"].as_u64().unwrap())
-        .collect();
-    assert_plot(
-        &dir.join("success_by_category.png"),
-        colours_of_nonzero(succeeded),
-    );
-    let failed = s["failure_reasons"]
-        .as_object()
-        .unwrap()
-        .values()
-        .map(|n| n.as_u64().unwrap())
-        .collect();
-    assert_plot(&dir.join("failure_reasons.png"), colours_of_nonzero(failed));
-}
-
 #[test]
 fn isolated_analytic_writes_results_and_same_seed_gives_same_results() {
     let dir = work_dir();
@@ -226,7 +194,7 @@ fn isolated_analytic_writes_results_and_same_seed_gives_same_results() {
     }
     let ra = read_results(&a);
     check_schema(&ra, "isolated", "analytic", 2);
-    check_plots(&a, &ra);
+    assert_grasp_plots(&a, &ra);
     // Isolated rounds show one object each, and the first two categories of the library.
     let cats: Vec<&str> = ra["attempts"]
         .as_array()
@@ -299,7 +267,7 @@ fn isolated_analytic_grasps_clear_a_floor_and_beat_random() {
         check(sim(&out, &args), source);
         let r = read_results(&out);
         check_schema(&r, "isolated", source, 10);
-        check_plots(&out, &r);
+        assert_grasp_plots(&out, &r);
         r
     };
     let analytic = run("analytic");
@@ -365,7 +333,7 @@ fn packed_pile_and_scattered_rounds_place_objects() {
         );
         let r = read_results(&out);
         check_schema(&r, scenario, "analytic", 3);
-        check_plots(&out, &r);
+        assert_grasp_plots(&out, &r);
         for round in r["rounds"].as_array().unwrap() {
             assert_eq!(round["objects"].as_array().unwrap().len(), 5, "{round}");
         }

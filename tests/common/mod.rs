@@ -273,6 +273,42 @@ pub fn assert_plot(path: &Path, min_colours: usize) -> PlotContent {
     }
 }
 
+/// How many colours bars drawn for `values` show: the bars cycle through the plots' 6 colours
+/// in order, and a bar of height 0 shows none.
+pub fn bar_colours(values: &[f64]) -> usize {
+    let used: std::collections::BTreeSet<usize> = values
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v > 0.0)
+        .map(|(i, _)| i % 6)
+        .collect();
+    used.len()
+}
+
+/// The plots of a sim run show its data: `success_by_category.png` a bar for every category
+/// with a grasp success, `failure_reasons.png` one for every failure reason that occurred, in as
+/// many colours as those bars use (both in the results' order).
+pub fn assert_grasp_plots(dir: &Path, r: &serde_json::Value) {
+    let s = &r["summary"];
+    let succeeded: Vec<f64> = s["per_category"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|c| c["grasp_success_rate"]["successes"].as_u64().unwrap() as f64)
+        .collect();
+    assert_plot(
+        &dir.join("success_by_category.png"),
+        bar_colours(&succeeded),
+    );
+    let failed: Vec<f64> = s["failure_reasons"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|n| n.as_u64().unwrap() as f64)
+        .collect();
+    assert_plot(&dir.join("failure_reasons.png"), bar_colours(&failed));
+}
+
 /// Decodes a round's storyboard (`rounds/round-NNNN.png`: rendered camera views side by side)
 /// and checks that it shows rendered scenes, not a blank canvas: at least 600 × 200 pixels, no
 /// colour covering more than 60 % of it, and at least 100 distinct colours (shaded objects,
