@@ -1,10 +1,12 @@
 //! `--encoder ae` and `--grasp network` end to end through the real `lgdm` binary built with the
 //! `ae` feature: `lgdm features` writes one finite, unit-norm 256-d row per view with the GOOD
-//! table's labels in the same order; the feature cache is keyed by the checkpoint's bytes; a short
-//! `lgdm train --scenario ni` runs on these features and records the checkpoint; a missing
-//! checkpoint or Python module is an error that names it; `lgdm sim grasp --grasp network` plays
-//! isolated rounds with the shipped network, every attempt with a grasp in the crop or the reason
-//! none was found. Needs numpy, torch and train_ae in the venv (`$VIRTUAL_ENV`,
+//! table's labels in the same order; the feature cache is keyed by the checkpoint's bytes; without
+//! `--ae-checkpoint` the shipped checkpoint is used; a short `lgdm train --scenario ni` on the
+//! shipped checkpoint's features recognises well above chance and records the checkpoint, and its
+//! config.toml repeats it; a missing checkpoint or Python module is an error that names it;
+//! `lgdm sim grasp --grasp network` plays isolated rounds with the shipped network, every attempt
+//! with a grasp in the crop or the reason none was found, and clears a floor of the objects.
+//! Needs numpy, torch and train_ae in the venv (`$VIRTUAL_ENV`,
 //! `$LGDM_VENV` or ~/.cache/lgdm/venv): `cargo test --release -p lgdm-cli --features ae --test
 //! e2e_ae`.
 
@@ -116,6 +118,41 @@ fn features_a() -> &'static FeatureTable {
     })
 }
 
+/// The shipped checkpoint (`train_ae.bridge.default_checkpoint()`), as the venv's train_ae
+/// names it.
+fn shipped_checkpoint() -> PathBuf {
+    let out = check(
+        Command::new(venv_python())
+            .args([
+                "-c",
+                "from train_ae import bridge; print(bridge.default_checkpoint())",
+            ])
+            .output()
+            .unwrap(),
+        "train_ae.bridge.default_checkpoint()",
+    );
+    PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+}
+
+/// The feature cache of the tests that use the shipped checkpoint.
+fn shipped_cache() -> PathBuf {
+    work_dir().join("cache-shipped")
+}
+
+/// `lgdm features --encoder ae` without `--ae-checkpoint`, run once (it fills the shipped
+/// checkpoint's cache).
+fn features_shipped() -> &'static FeatureTable {
+    static SHIPPED: OnceLock<FeatureTable> = OnceLock::new();
+    SHIPPED.get_or_init(|| {
+        let out = work_dir().join("shipped.npz");
+        check(
+            features(&shipped_cache(), "ae", None, &out),
+            "features --encoder ae without --ae-checkpoint",
+        );
+        FeatureTable::read_npz(&out).unwrap()
+    })
+}
+
 #[test]
 fn features_are_unit_256d_rows_in_good_order_cached_per_checkpoint() {
     let dir = work_dir().join("features");
@@ -167,35 +204,44 @@ fn features_are_unit_256d_rows_in_good_order_cached_per_checkpoint() {
     assert_ne!(a.features, b.features);
 }
 
+/// Measured on this 2-core machine (release build, `lgdm train --scenario ni --encoder ae
+/// --trials 1` on the tiny dataset with the shipped checkpoint): test category accuracy 94.2 %
+/// (G-SM) and 96.7 % (G-EM), test instance accuracy 86.7 %; chance is 10 % and 5 % (an
+/// untrained checkpoint gives about that: 10 %, 11.7 %, 6.7 %). The floors leave a wide margin.
 #[test]
-fn train_ni_runs_on_ae_features_and_records_the_checkpoint() {
+fn train_ni_on_shipped_features_beats_chance_and_records_the_checkpoint() {
     let dir = work_dir().join("train");
     std::fs::create_dir_all(&dir).unwrap();
     let run = dir.join("run");
-    features_a(); // the features come from the shared cache
-    check(
-        lgdm(&shared_cache())
-            .args([
-                "train",
-                "--scenario",
-                "ni",
-                "--encoder",
-                "ae",
-                "--trials",
-                "1",
-            ])
-            .args(["--progress", "none", "--ae-checkpoint"])
-            .arg(checkpoint_a())
-            .arg("--dataset")
-            .arg(tiny_dataset())
-            .arg("--out")
-            .arg(&run)
-            .output()
-            .unwrap(),
-        "train --encoder ae",
+    features_shipped(); // the features come from the shipped checkpoint's cache
+    let train = |out: &Path, extra: &[&str]| {
+        check(
+            lgdm(&shipped_cache())
+                .args(["train", "--progress", "none"])
+                .args(extra)
+                .arg("--out")
+                .arg(out)
+                .output()
+                .unwrap(),
+            "train --encoder ae",
+        );
+        let text = std::fs::read_to_string(out.join("metrics.json")).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let dataset = tiny_dataset().to_str().unwrap();
+    let metrics = train(
+        &run,
+        &[
+            "--scenario",
+            "ni",
+            "--encoder",
+            "ae",
+            "--trials",
+            "1",
+            "--dataset",
+            dataset,
+        ],
     );
-    let metrics: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(metrics["encoder"], "ae");
     let trial = &metrics["trials"][0];
     assert_eq!(
@@ -203,39 +249,39 @@ fn train_ni_runs_on_ae_features_and_records_the_checkpoint() {
         12,
         "one step per training collection"
     );
-    let acc = trial["test"]["category_accuracy_sm"].as_f64().unwrap();
-    assert!((0.0..=1.0).contains(&acc), "category accuracy {acc}");
-    assert!(trial["episodic_nodes"].as_u64().unwrap() >= 2);
+    let test = &trial["test"];
+    let (cat_sm, cat_em, inst) = (
+        test["category_accuracy_sm"].as_f64().unwrap(),
+        test["category_accuracy_em"].as_f64().unwrap(),
+        test["instance_accuracy"].as_f64().unwrap(),
+    );
+    assert!(
+        cat_sm >= 0.6 && cat_em >= 0.6,
+        "test category accuracy G-SM {cat_sm}, G-EM {cat_em}: below the floor 0.6 (measured \
+         0.942, 0.967; chance 0.1)"
+    );
+    assert!(
+        inst >= 0.4,
+        "test instance accuracy {inst}: below the floor 0.4 (measured 0.867; chance 0.05)"
+    );
+    assert!(trial["episodic_nodes"].as_u64().unwrap() >= 20, "{trial}");
     let config = std::fs::read_to_string(run.join("config.toml")).unwrap();
-    let ckpt = std::fs::canonicalize(checkpoint_a()).unwrap();
+    let ckpt = std::fs::canonicalize(shipped_checkpoint()).unwrap();
     assert!(
         config.contains(&format!("ae_checkpoint = \"{}\"", ckpt.display())),
-        "config.toml does not name the checkpoint:\n{config}"
+        "config.toml does not name the shipped checkpoint {}:\n{config}",
+        ckpt.display()
     );
     assert!(config.contains("ae_checkpoint_fnv1a = "), "{config}");
-    // config.toml still passes back as --config.
-    check(
-        lgdm(&dir.join("cache"))
-            .args([
-                "train",
-                "--scenario",
-                "ni",
-                "--encoder",
-                "ae",
-                "--trials",
-                "1",
-            ])
-            .args(["--progress", "none", "--epochs", "1", "--config"])
-            .arg(run.join("config.toml"))
-            .arg("--ae-checkpoint")
-            .arg(checkpoint_a())
-            .arg("--dataset")
-            .arg(tiny_dataset())
-            .arg("--out")
-            .arg(dir.join("run2"))
-            .output()
-            .unwrap(),
-        "train --config <run>/config.toml",
+    // config.toml passed back as --config repeats the run.
+    let config_path = run.join("config.toml");
+    let again = train(
+        &dir.join("run2"),
+        &["--config", config_path.to_str().unwrap()],
+    );
+    assert_eq!(
+        common::without_times(&again)["trials"],
+        common::without_times(&metrics)["trials"]
     );
 }
 
@@ -278,22 +324,42 @@ fn missing_checkpoint_or_module_is_named() {
     assert!(err.contains(&*empty.to_string_lossy()), "{err}");
 }
 
+/// Without `--ae-checkpoint` the shipped checkpoint is used: its features are the ones
+/// `--ae-checkpoint <the shipped file>` gives, from the same cache entry.
 #[test]
-fn without_ae_checkpoint_the_shipped_one_is_used_or_the_flag_is_named() {
+fn without_ae_checkpoint_the_shipped_one_is_used() {
     let dir = work_dir().join("default");
     std::fs::create_dir_all(&dir).unwrap();
-    let out = features(&dir.join("cache"), "ae", None, &dir.join("d.npz"));
-    if out.status.success() {
-        assert_eq!(FeatureTable::read_npz(&dir.join("d.npz")).unwrap().dim, 256);
-    } else {
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("--ae-checkpoint"), "{err}");
-    }
+    let shipped = features_shipped();
+    assert_eq!((shipped.dim, shipped.len()), (256, 900));
+    assert_eq!(cached_ae_tables(&shipped_cache()), 1);
+    let explicit = dir.join("explicit.npz");
+    check(
+        features(
+            &shipped_cache(),
+            "ae",
+            Some(&shipped_checkpoint()),
+            &explicit,
+        ),
+        "features --ae-checkpoint <shipped>",
+    );
+    assert_eq!(&FeatureTable::read_npz(&explicit).unwrap(), shipped);
+    assert_eq!(
+        cached_ae_tables(&shipped_cache()),
+        1,
+        "the same checkpoint made a second cache entry"
+    );
 }
 
 /// `lgdm sim grasp --grasp network` with the shipped checkpoint: results.json names the source,
-/// every attempt tried a network grasp (crop pixels, jaw = the finger width in the 224-px crop)
-/// or failed with `no_grasp_found`; a missing `--ae-checkpoint` is named before any round runs.
+/// every attempt tried a network grasp (crop pixels, a positive opening inside the crop, jaw =
+/// the finger width in the 224-px crop, a plan within the gripper's stroke) or failed with
+/// `no_grasp_found`, and the grasps clear a floor of the objects; a missing `--ae-checkpoint` is
+/// named before any round runs.
+///
+/// Measured on this 2-core machine (release build, `lgdm sim grasp --scenario isolated --grasp
+/// network --rounds 10 --seed 0`): 8/13 grasped, 8/10 objects cleared. The floor, 4 of 10, is
+/// half of that.
 #[test]
 fn sim_grasp_network_plays_isolated_rounds() {
     let dir = work_dir().join("sim");
@@ -308,7 +374,7 @@ fn sim_grasp_network_plays_isolated_rounds() {
                 "--grasp",
                 "network",
             ])
-            .args(["--rounds", "3", "--seed", "0", "--progress", "none"])
+            .args(["--rounds", "10", "--seed", "0", "--progress", "none"])
             .args(extra)
             .arg("--out")
             .arg(out)
@@ -322,8 +388,16 @@ fn sim_grasp_network_plays_isolated_rounds() {
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     assert_eq!(results["run"]["grasp_source"], "network");
     let attempts = results["attempts"].as_array().unwrap();
-    assert!(!attempts.is_empty(), "no attempt in 3 rounds");
+    assert!(!attempts.is_empty(), "no attempt in 10 rounds");
     assert_eq!(results["summary"]["attempts"], attempts.len());
+    let cleared = &results["summary"]["cleared_fraction"];
+    common::assert_rate(cleared, "cleared_fraction");
+    let (placed, objects, _) = common::rate_counts(cleared);
+    assert_eq!(objects, 10);
+    assert!(
+        placed >= 4,
+        "the network's grasps cleared {placed}/10 objects, below the floor 4 (measured 8)"
+    );
     let mut tried = 0;
     for a in attempts {
         let grasp = &a["grasp"];
@@ -347,7 +421,15 @@ fn sim_grasp_network_plays_isolated_rounds() {
             (jaw - 224.0 * 0.02 / 0.22).abs() < 0.05,
             "jaw {jaw} px: {g}"
         );
-        assert!(g["width_px"].as_f64().unwrap() >= 0.0, "{g}");
+        // The network's width map has no activation: a decoded opening must still be a
+        // positive width inside the crop.
+        let width = g["width_px"].as_f64().unwrap();
+        assert!(width > 0.0 && width <= 224.0, "opening {width} px: {g}");
+        let opening = grasp["plan"]["opening_m"].as_f64().unwrap();
+        assert!(
+            opening > 0.0 && opening <= 0.085 + 1e-9,
+            "planned opening {opening} m outside the stroke: {grasp}"
+        );
         assert!(
             g["quality"].as_f64().unwrap() >= 0.2,
             "below the threshold: {g}"
@@ -359,7 +441,7 @@ fn sim_grasp_network_plays_isolated_rounds() {
             );
         }
     }
-    assert!(tried > 0, "the network proposed no grasp in 3 rounds");
+    assert!(tried > 0, "the network proposed no grasp in 10 rounds");
 
     let missing = dir.join("no-such.pt");
     let err = sim(
