@@ -1,6 +1,7 @@
 //! End-to-end tests: each drives the real `lgdm` binary as a user would, on a tiny generated
 //! dataset, and checks what a user relies on: the files a run writes, the documented fields of
-//! `metrics.json`, accuracies clearly above chance, and same seed → same metrics.
+//! `metrics.json`, accuracies clearly above chance, plots that show the run's series, and same
+//! seed → same metrics.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -8,7 +9,7 @@ use std::sync::OnceLock;
 
 #[path = "common/mod.rs"]
 mod common;
-use common::{check, lgdm, without_times};
+use common::{assert_plot, check, lgdm, without_times};
 
 fn work_dir() -> PathBuf {
     common::work_dir("e2e")
@@ -111,16 +112,13 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
         "summary.txt",
         "model-trial0.lgdm",
         "model-trial1.lgdm",
-        "nodes.png",
-        "accuracy.png",
-        "quantization_error.png",
-        "category_accuracy.png",
     ] {
         assert!(
             base.join("a").join(file).is_file(),
             "{scenario}: {file} missing"
         );
     }
+    assert_run_plots(&base.join("a"));
     // Documented fields.
     assert_eq!(a["scenario"], scenario);
     assert_eq!(a["format_version"], 1);
@@ -195,6 +193,16 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
     }
 }
 
+/// A training run's plots show its series: G-EM and G-SM node counts and quantization errors,
+/// the five accuracy series (train instance and category, test instance and category by both
+/// memories), and a bar per category with a test accuracy above zero.
+fn assert_run_plots(dir: &Path) {
+    assert_plot(&dir.join("nodes.png"), 2);
+    assert_plot(&dir.join("accuracy.png"), 5);
+    assert_plot(&dir.join("quantization_error.png"), 2);
+    assert_plot(&dir.join("category_accuracy.png"), 1);
+}
+
 #[test]
 fn version_is_printed() {
     let out = check(
@@ -250,7 +258,14 @@ fn eval_reports_accuracy_and_writes_the_confusion_matrix() {
     assert!(stdout.contains("model size"), "{stdout}");
     let csv = std::fs::read_to_string(out.join("confusion.csv")).unwrap();
     assert_eq!(csv.lines().count(), 11, "header + 10 categories");
-    assert!(out.join("confusion.png").is_file());
+    // The confusion matrix's cells are shaded blue by their share of the row: a model above
+    // chance fills at least some cells.
+    let confusion = assert_plot(&out.join("confusion.png"), 1);
+    assert!(
+        confusion.colours.iter().map(|(_, n)| n).sum::<usize>() >= 1000,
+        "confusion.png: {:?}",
+        confusion.colours
+    );
     let eval: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
     assert!(eval["category_accuracy_sm"].as_f64().unwrap() > 0.3);
@@ -357,9 +372,10 @@ fn merged_single_trial_runs_equal_one_multi_trial_run() {
             "{t} differs"
         );
     }
-    for f in ["summary.txt", "config.toml", "nodes.png", "accuracy.png"] {
+    for f in ["summary.txt", "config.toml"] {
         assert!(base.join("merged").join(f).is_file(), "{f} missing");
     }
+    assert_run_plots(&base.join("merged"));
 
     // The same trial twice, or two different experiments, are refused before anything is
     // written.
