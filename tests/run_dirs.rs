@@ -8,7 +8,6 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
 
 #[path = "common/mod.rs"]
 mod common;
@@ -237,6 +236,63 @@ fn two_trains_into_one_directory_do_not_mix() {
     assert!(config.contains(&format!("seed = {seed}")), "{config}");
 }
 
+/// The trial records of a run directory that are complete (record and model): what `--resume`
+/// counts as done.
+fn recorded_trials(dir: &Path, trials: usize) -> usize {
+    (0..trials)
+        .filter(|t| {
+            dir.join(format!("trials/trial-{t}.json")).is_file()
+                && dir.join(format!("model-trial{t}.lgdm")).is_file()
+        })
+        .count()
+}
+
+/// Resumes `dir` and checks that it ends as the straight run did: the resume reports the
+/// `recorded` trials it found, and the metrics (timing aside) and every model are the straight
+/// run's.
+fn resume_matches(dir: &Path, straight: &Path, recorded: usize) {
+    // Experiment flags cannot change a resumed run.
+    let err = refused(
+        lgdm(&cache())
+            .args(["train", "--progress", "none", "--seed", "9", "--resume"])
+            .arg(dir)
+            .output()
+            .unwrap(),
+    );
+    assert!(err.contains("--seed"), "{err}");
+    let out = check(
+        lgdm(&cache())
+            .args(["train", "--progress", "bar", "--resume"])
+            .arg(dir)
+            .output()
+            .unwrap(),
+        "resume",
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&format!("{recorded} of 2 trial(s) recorded")),
+        "{}: {stderr}",
+        dir.display()
+    );
+    assert_eq!(
+        without_times(&metrics(dir)),
+        without_times(&metrics(straight))
+    );
+    for t in ["model-trial0.lgdm", "model-trial1.lgdm"] {
+        assert!(
+            read(&dir.join(t)) == read(&straight.join(t)),
+            "{}: {t} differs from the straight run's",
+            dir.display()
+        );
+    }
+}
+
+/// A run stopped after its first trial — what a kill leaves: `config.toml`, the first trial's
+/// model and record, no `metrics.json` — is not mistaken for a finished run and resumes to
+/// exactly what an uninterrupted run gives. Then a real run is killed (SIGKILL) as soon as its
+/// first trial is recorded; where the kill lands in the rest of the run (the second trial, its
+/// files, `metrics.json`, or after the end) is up to the scheduler, and every assertion made
+/// about it holds wherever it lands. Nothing here depends on timing.
 #[test]
 fn a_killed_run_resumes_to_what_a_straight_run_gives() {
     let base = work_dir().join("resume");
@@ -253,6 +309,25 @@ fn a_killed_run_resumes_to_what_a_straight_run_gives() {
     let straight = base.join("straight");
     train(&straight, &args);
 
+    // The state a kill after the first trial leaves, made from the straight run's files.
+    let stopped = base.join("stopped");
+    std::fs::create_dir_all(stopped.join("trials")).unwrap();
+    for f in ["config.toml", "model-trial0.lgdm", "trials/trial-0.json"] {
+        std::fs::copy(straight.join(f), stopped.join(f)).unwrap();
+    }
+    let err = refused(
+        lgdm(&cache())
+            .arg("merge")
+            .arg(&stopped)
+            .arg("--out")
+            .arg(base.join("m-stopped"))
+            .output()
+            .unwrap(),
+    );
+    assert!(err.contains("--resume"), "{err}");
+    resume_matches(&stopped, &straight, 1);
+
+    // A real kill, once the first trial's record exists.
     let killed = base.join("killed");
     let mut child = train_cmd(&killed, &args)
         .stdout(Stdio::null())
@@ -260,64 +335,48 @@ fn a_killed_run_resumes_to_what_a_straight_run_gives() {
         .spawn()
         .unwrap();
     let record = killed.join("trials/trial-0.json");
-    let started = Instant::now();
-    while !record.exists() {
-        assert!(
-            started.elapsed() < Duration::from_secs(300),
-            "trial 0 never finished"
-        );
-        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
-        std::thread::sleep(Duration::from_millis(2));
+    loop {
+        if record.exists() {
+            break;
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            // Ended between two looks: only by finishing, and then trial 0 is recorded.
+            assert!(
+                status.success() && record.exists(),
+                "the run ended ({status}) without recording trial 0"
+            );
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
     }
-    child.kill().unwrap(); // SIGKILL
+    child.kill().unwrap(); // SIGKILL (no effect if it has already ended)
     child.wait().unwrap();
+    let recorded = recorded_trials(&killed, 2);
+    let finished = killed.join("metrics.json").is_file();
+    assert!(recorded >= 1, "trial 0's record without its model");
     assert!(
-        !killed.join("metrics.json").exists(),
-        "the run finished before it could be killed; the test needs a longer trial"
+        !finished || recorded == 2,
+        "metrics.json before every trial was recorded"
     );
-    // An unfinished run is not mistaken for a finished one.
-    let err = refused(
-        lgdm(&cache())
-            .arg("merge")
-            .arg(&killed)
-            .arg("--out")
-            .arg(base.join("m"))
-            .output()
-            .unwrap(),
-    );
-    assert!(err.contains("--resume"), "{err}");
-    // Experiment flags cannot change a resumed run.
-    let err = refused(
-        lgdm(&cache())
-            .args(["train", "--progress", "none", "--seed", "9", "--resume"])
-            .arg(&killed)
-            .output()
-            .unwrap(),
-    );
-    assert!(err.contains("--seed"), "{err}");
-    let out = check(
-        lgdm(&cache())
-            .args(["train", "--progress", "bar", "--resume"])
-            .arg(&killed)
-            .output()
-            .unwrap(),
-        "resume",
-    );
-    assert!(
-        String::from_utf8_lossy(&out.stderr).contains("1 of 2 trial(s) recorded"),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // An unfinished run is not mistaken for a finished one: merge takes only a finished run.
+    let merge = lgdm(&cache())
+        .arg("merge")
+        .arg(&killed)
+        .arg("--out")
+        .arg(base.join("m-killed"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&merge.stderr);
     assert_eq!(
-        without_times(&metrics(&killed)),
-        without_times(&metrics(&straight))
+        merge.status.success(),
+        finished,
+        "merge of the killed run: {err}"
     );
-    for t in ["model-trial0.lgdm", "model-trial1.lgdm"] {
-        assert!(
-            read(&killed.join(t)) == read(&straight.join(t)),
-            "{t} differs from the straight run's"
-        );
+    if !finished {
+        assert!(err.contains("--resume"), "{err}");
     }
+    println!("killed with {recorded} of 2 trials recorded, finished: {finished}");
+    resume_matches(&killed, &straight, recorded);
 }
 
 #[test]
@@ -529,22 +588,49 @@ fn a_killed_first_use_generation_leaves_nothing_that_stays() {
     drop(lock);
 }
 
+/// A generation into a directory another process is writing is refused and writes nothing; two
+/// generations started together never mix. The refusal is checked deterministically against a
+/// lock this test holds; for the two real processes every assertion holds however the
+/// scheduler overlaps them.
 #[test]
 fn two_generations_into_one_directory_do_not_mix() {
+    let gen_cmd = |out: &Path, seed: &str| {
+        let mut cmd = lgdm(&cache());
+        cmd.args([
+            "gen-dataset",
+            "--preset",
+            "small",
+            "--frames",
+            "3",
+            "--seed",
+            seed,
+        ])
+        .args(["--progress", "none", "--out"])
+        .arg(out);
+        cmd
+    };
+    // While another writer holds the directory's lock: refused, nothing written.
+    let held = work_dir().join("gen-held");
+    let lock = lgdm_pointcloud::DirLock::try_acquire(&held)
+        .unwrap()
+        .expect("free");
+    let err = refused(gen_cmd(&held, "1").output().unwrap());
+    assert!(err.contains("another lgdm process"), "{err}");
+    let left: Vec<String> = std::fs::read_dir(&held)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        left,
+        [lgdm_pointcloud::LOCK_FILE],
+        "a refused generation wrote"
+    );
+    drop(lock);
+
+    // Two real generations at once.
     let out = work_dir().join("gen-twice");
     let spawn = |seed: &str| {
-        lgdm(&cache())
-            .args([
-                "gen-dataset",
-                "--preset",
-                "small",
-                "--frames",
-                "3",
-                "--seed",
-                seed,
-            ])
-            .args(["--progress", "none", "--out"])
-            .arg(&out)
+        gen_cmd(&out, seed)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -552,21 +638,21 @@ fn two_generations_into_one_directory_do_not_mix() {
     };
     let (a, b) = (spawn("1"), spawn("2"));
     let (a, b) = (a.wait_with_output().unwrap(), b.wait_with_output().unwrap());
-    let failed: Vec<&Output> = [&a, &b]
-        .into_iter()
-        .filter(|o| !o.status.success())
-        .collect();
-    assert_eq!(
-        failed.len(),
-        1,
-        "exactly one of two concurrent generations may write"
-    );
-    let err = String::from_utf8_lossy(&failed[0].stderr);
-    assert!(err.contains("another lgdm process"), "{err}");
     let manifest: Value = serde_json::from_slice(&read(&out.join("manifest.json"))).unwrap();
     let seed = manifest["seed"].as_u64().unwrap();
-    let winner = if a.status.success() { 1 } else { 2 };
-    assert_eq!(seed, winner);
+    match (a.status.success(), b.status.success()) {
+        (true, true) => {
+            // They did not overlap: the second replaced the first's whole dataset.
+            assert!(seed == 1 || seed == 2, "seed {seed}");
+        }
+        (a_ok, b_ok) => {
+            assert!(a_ok || b_ok, "both generations failed");
+            let loser = if a_ok { &b } else { &a };
+            let err = String::from_utf8_lossy(&loser.stderr);
+            assert!(err.contains("another lgdm process"), "{err}");
+            assert_eq!(seed, if a_ok { 1 } else { 2 }, "the loser's dataset");
+        }
+    }
     assert!(!out.join(lgdm_pointcloud::LOCK_FILE).exists());
 }
 
