@@ -2,14 +2,21 @@
 # The project's one test command (README, .ci/run): sets up everything it needs from scratch
 # (Rust build, Python venv, maturin build of the `lgdm` module) and runs every test.
 #
+# Order: lint; the venv with the Python test tools (numpy, maturin, pytest, ruff) before the Rust
+# tests, which use its numpy (crates/pointcloud/tests/features_npz.rs loads a written .npz; it
+# fails without numpy, it never skips); the Rust tests; the `lgdm` module and its pytest; torch
+# and train_ae (~3 GB on first use) last, then the Rust ↔ torch bridge tests.
+#
 # Environment:
-#   LGDM_VENV      the Python venv to create or reuse (default: ~/.cache/lgdm/venv, outside the clone)
+#   LGDM_VENV      the Python venv to create or reuse (default: ~/.cache/lgdm/venv, outside the clone);
+#                  exported, so the tests find the same venv
 #   CARGO_TARGET_DIR  shared cargo target dir (default: ./target)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$root/target}
 venv=${LGDM_VENV:-$HOME/.cache/lgdm/venv}
+export LGDM_VENV="$venv"
 
 step() { printf '\n== %s ==\n' "$*"; }
 
@@ -17,15 +24,15 @@ step "rust: format, lint"
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --release -- -D warnings
 
-step "rust: tests (release build: the contract and end-to-end tests do real work)"
-cargo test --workspace --release
-
-step "python: venv at $venv"
+step "python: venv at $venv (the test tools; the Rust tests below use its numpy)"
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q -r "$root/tests/requirements-dev.txt"
+
+step "rust: tests (release build: the contract and end-to-end tests do real work)"
+cargo test --workspace --release
 
 step "python: build and install the lgdm module (maturin)"
 (
@@ -41,8 +48,9 @@ step "python: lint, tests"
 step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into the venv on first use)"
 "$venv/bin/python" -m pip install -q -e python/train_ae
 "$venv/bin/ruff" check python/train_ae
-# test_ceiling.py generates grasp images with the release binary built above.
-LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q python/train_ae/tests
+# test_ceiling.py generates grasp images with the release binary built above (-rs: say why a
+# test was skipped).
+LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q -rs python/train_ae/tests
 
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --lib --test ae_bridge

@@ -1,25 +1,51 @@
 //! GOOD features of a generated dataset: one 675-value row per view with its labels, written
-//! as `.npz` that reads back identically here and that numpy loads (checked when a Python with
-//! numpy is available: `LGDM_PYTHON`, the project venv, or `python3`).
+//! as `.npz` that reads back identically here and that numpy loads. The numpy check always runs:
+//! the Python is `LGDM_PYTHON`, else the project venv (`$LGDM_VENV`, else
+//! `~/.cache/lgdm/venv`; `tests/run-all.sh` creates it with numpy before `cargo test`), else
+//! `python3`; none with numpy is a failure that says how to get one.
 
 use std::process::Command;
 
 use lgdm_pointcloud::dataset::{Dataset, DatasetSpec, generate, standard_collections};
 use lgdm_pointcloud::features::{FeatureTable, good_features};
 
-fn python_with_numpy() -> Option<String> {
-    let home = std::env::var("HOME").unwrap_or_default();
-    let candidates = [
+/// A Python that imports numpy, or a panic listing what was tried.
+fn python_with_numpy() -> String {
+    let venv = std::env::var("LGDM_VENV").ok().or_else(|| {
+        std::env::var("HOME")
+            .ok()
+            .map(|home| format!("{home}/.cache/lgdm/venv"))
+    });
+    let candidates: Vec<String> = [
         std::env::var("LGDM_PYTHON").ok(),
-        Some(format!("{home}/.cache/lgdm/venv/bin/python")),
+        venv.map(|v| format!("{v}/bin/python")),
         Some("python3".to_string()),
-    ];
-    candidates.into_iter().flatten().find(|py| {
-        Command::new(py)
-            .args(["-c", "import numpy"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let mut tried = Vec::new();
+    for py in &candidates {
+        match Command::new(py).args(["-c", "import numpy"]).output() {
+            Ok(o) if o.status.success() => return py.clone(),
+            Ok(o) => tried.push(format!(
+                "{py}: {}",
+                String::from_utf8_lossy(&o.stderr)
+                    .trim()
+                    .lines()
+                    .last()
+                    .unwrap_or("failed")
+            )),
+            Err(e) => tried.push(format!("{py}: {e}")),
+        }
+    }
+    panic!(
+        "no Python with numpy to check the .npz with; tried:\n  {}\n\
+         Run tests/run-all.sh (it creates the venv with numpy before `cargo test`), or create \
+         one (`python3 -m venv ~/.cache/lgdm/venv && ~/.cache/lgdm/venv/bin/pip install numpy`), \
+         or point LGDM_PYTHON at a Python with numpy (LGDM_VENV at a venv with it).",
+        tried.join("\n  ")
+    );
 }
 
 #[test]
@@ -59,10 +85,7 @@ fn features_cover_every_view_and_numpy_reads_them() {
     table.write_npz(&path).unwrap();
     assert_eq!(FeatureTable::read_npz(&path).unwrap(), table);
 
-    let Some(py) = python_with_numpy() else {
-        eprintln!("skipping the numpy check: no Python with numpy found");
-        return;
-    };
+    let py = python_with_numpy();
     let script = format!(
         "import numpy as np\nz = np.load(r'{}')\n\
          assert sorted(z.files) == sorted(['features','collection','category','instance','sequence','frame']), z.files\n\
