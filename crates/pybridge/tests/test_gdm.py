@@ -4,8 +4,8 @@ parameters, and the GIL released while Rust works."""
 from __future__ import annotations
 
 import pickle
+import sys
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -203,32 +203,41 @@ def test_no_context_prediction_differs_in_general(objects):
 
 
 def test_gil_is_released_while_training():
-    """Another Python thread keeps running while Rust trains: with the GIL held, the main
-    thread's loop would stall for the whole call."""
-    rng = np.random.default_rng(0)
-    x = rng.normal(0, 1, (2000, 256)).astype(np.float32)
-    seeded = lgdm.GDM(seed=0).partial_fit(x[:100])
-    model = pickle.loads(pickle.dumps(seeded))
-    started = time.perf_counter()
-    model.partial_fit(x)
-    alone = time.perf_counter() - started
-    assert alone > 0.05, "the training call is too short to tell"
-    model = pickle.loads(pickle.dumps(seeded))
+    """Another Python thread runs while Rust trains, shown by the order of events, not by times.
 
-    done = threading.Event()
+    Forced GIL switches are put off (a 100 s switch interval), so the two threads' Python code
+    can only interleave where one of them gives the GIL up. The worker marks "enter" and
+    "return" around each ``partial_fit`` (X float32 and C-ordered, no labels: nothing between the
+    marks but the Rust call gives the GIL up). The main thread, started and waiting for the GIL,
+    marks "main" as soon as it gets it. If training released the GIL the main thread's mark
+    falls between an "enter" and its "return"; if it held the GIL the main thread could run only
+    after the worker's last call (its calls stop at the first one the main thread ran inside)."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 1, (500, 64)).astype(np.float32)
+    model = lgdm.GDM(seed=0).partial_fit(x[:50])
+    calls = 20
+    events: list[str] = []
+    main_ran = threading.Event()
 
     def train() -> None:
-        model.partial_fit(x)
-        done.set()
+        for _ in range(calls):
+            events.append("enter")
+            model.partial_fit(x)
+            events.append("return")
+            if main_ran.is_set():
+                return
 
     worker = threading.Thread(target=train)
-    ticks = []
-    worker.start()
-    while not done.is_set():
-        ticks.append(time.perf_counter())
-        time.sleep(0.001)
-    worker.join()
-    gaps = np.diff(ticks) if len(ticks) > 1 else np.array([alone])
-    assert gaps.max() < 0.5 * alone + 0.05, (
-        f"main thread stalled {gaps.max():.3f} s of {alone:.3f} s"
-    )
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(100.0)
+    try:
+        worker.start()  # waits (GIL released) until the worker runs; resumes when it gets the GIL
+        events.append("main")
+        main_ran.set()
+        worker.join()
+    finally:
+        sys.setswitchinterval(interval)
+    at = events.index("main")
+    assert 0 < at < len(events) - 1, f"the main thread never ran during a training call: {events}"
+    assert events[at - 1] == "enter" and events[at + 1] == "return", events
+    assert model.n_nodes_episodic_ > 0
