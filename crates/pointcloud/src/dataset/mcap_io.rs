@@ -31,6 +31,20 @@ pub fn foxglove_schema<T: Encode>() -> (String, String, Vec<u8>) {
     (schema.name, schema.encoding, schema.data.into_owned())
 }
 
+/// An MCAP writer as every lgdm file is written: zstd chunks compressed on the calling thread
+/// at zstd's default level (the same messages give the same bytes), `library` (e.g.
+/// `lgdm-sim/0.1.0`) in the header. Datasets and the robot's recordings both start here.
+pub fn foxglove_writer<W: std::io::Write + std::io::Seek>(
+    w: W,
+    library: &str,
+) -> Result<mcap::Writer<W>, mcap::McapError> {
+    mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .compression_threads(0)
+        .library(library)
+        .create(w)
+}
+
 /// A foxglove timestamp `ns` nanoseconds after the epoch (for sim time: after the start).
 pub fn foxglove_timestamp(ns: u64) -> Timestamp {
     Timestamp::new(
@@ -229,12 +243,8 @@ impl CollectionWriter {
             path: path.to_path_buf(),
             reason: format!("writing MCAP: {e}"),
         };
-        let mut writer = mcap::WriteOptions::new()
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_threads(0)
-            .library(concat!("lgdm-pointcloud/", env!("CARGO_PKG_VERSION")))
-            .create(file)
-            .map_err(mcap_err)?;
+        let library = concat!("lgdm-pointcloud/", env!("CARGO_PKG_VERSION"));
+        let mut writer = foxglove_writer(file, library).map_err(mcap_err)?;
         let (name, encoding, data) = point_cloud_schema();
         let schema_id = writer
             .add_schema(&name, &encoding, &data)

@@ -43,7 +43,7 @@ pub use generate::{
 };
 pub use mcap_io::{
     POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud, foxglove_pose,
-    foxglove_schema, foxglove_timestamp, point_cloud_schema,
+    foxglove_schema, foxglove_timestamp, foxglove_writer, point_cloud_schema,
 };
 pub use spec::{CameraSpec, CollectionSpec, DatasetSpec, Split, standard_collections};
 
