@@ -568,6 +568,17 @@ impl Recognizer {
         wall: &mut WallTimes,
     ) -> Result<Guess, RecognitionError> {
         let views = self.views(world, object, self.config.look_views, wall)?;
+        self.guess_from(&views, wall)
+    }
+
+    /// The first guess from the features of one look's views (the policy of [`Recognizer::guess`]
+    /// on plain features: the dual memory's prediction with temporal context, the majority
+    /// category and instance, the share of agreeing views as the confidence).
+    pub fn guess_from(
+        &mut self,
+        views: &[Vec<f32>],
+        wall: &mut WallTimes,
+    ) -> Result<Guess, RecognitionError> {
         let none = Guess {
             category: None,
             instance: None,
@@ -625,6 +636,19 @@ impl Recognizer {
         wall: &mut WallTimes,
     ) -> Result<usize, RecognitionError> {
         let views = self.views(world, object, self.config.teach_views, wall)?;
+        self.learn(&views, category, instance, wall)
+    }
+
+    /// A lesson on plain features: `views` are instance `instance` of `category` (train ×
+    /// [`RecognitionConfig::teach_epochs`], episode end); new names get the next ids. Returns
+    /// the number of views learnt.
+    pub fn learn(
+        &mut self,
+        views: &[Vec<f32>],
+        category: &str,
+        instance: &str,
+        wall: &mut WallTimes,
+    ) -> Result<usize, RecognitionError> {
         if views.is_empty() {
             return Ok(0);
         }
@@ -730,6 +754,59 @@ mod tests {
     use crate::world::WorldConfig;
     use lgdm_pointcloud::math::translation;
     use lgdm_pointcloud::objects::procedural_library;
+
+    /// The guess-and-teach policy runs on plain features, without a world: a model taught two
+    /// well-separated clusters names each from fresh samples of it.
+    #[test]
+    fn the_policy_runs_on_plain_features() {
+        /// A 4-d encoder stand-in (never asked to encode here).
+        #[derive(Debug)]
+        struct Plain;
+        impl ViewEncoder for Plain {
+            fn name(&self) -> &str {
+                "plain"
+            }
+            fn dim(&self) -> usize {
+                4
+            }
+            fn encode(
+                &mut self,
+                _: &[lgdm_pointcloud::PointCloud],
+                _: &lgdm_pointcloud::render::Camera,
+            ) -> Result<Vec<Option<Vec<f32>>>, EncoderError> {
+                Err("not used".into())
+            }
+        }
+        let config = RecognitionConfig::default();
+        let mut r =
+            Recognizer::empty_with_encoder(config, Box::new(Plain), Labels::default(), 1).unwrap();
+        let mut wall = WallTimes::default();
+        let cluster = |at: f32, k: usize| -> Vec<Vec<f32>> {
+            (0..k)
+                .map(|i| vec![at + 0.01 * i as f32, at, 1.0 - at, 0.5])
+                .collect()
+        };
+        let empty = r.guess_from(&cluster(0.1, 5), &mut wall).unwrap();
+        assert!(!empty.known && empty.category.is_none());
+        for _ in 0..3 {
+            assert_eq!(
+                r.learn(&cluster(0.1, 10), "mug", "mug_01", &mut wall)
+                    .unwrap(),
+                10
+            );
+            assert_eq!(
+                r.learn(&cluster(0.9, 10), "can", "can_01", &mut wall)
+                    .unwrap(),
+                10
+            );
+        }
+        for (at, name) in [(0.1, "mug"), (0.9, "can")] {
+            let g = r.guess_from(&cluster(at, 5), &mut wall).unwrap();
+            assert_eq!(g.category.as_deref(), Some(name), "{g:?}");
+            assert!(g.known && g.confidence > 0.5, "{g:?}");
+        }
+        assert_eq!(r.labels().categories, ["mug", "can"]);
+    }
 
     #[test]
     fn majority_prefers_count_then_the_later_view() {
