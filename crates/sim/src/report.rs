@@ -98,8 +98,19 @@ pub fn summary_table(r: &RunResults) -> String {
 /// categories arriving over time) first, then recognition and teacher, then the grasp run's
 /// table.
 pub fn pick_place_table(r: &RunResults) -> String {
-    let s = &r.summary;
     let mut out = String::new();
+    packing_section(&mut out, r);
+    arrival_section(&mut out, r);
+    recognition_section(&mut out, r);
+    // The grasp table's first line names the command that made it.
+    let grasp = summary_table(r);
+    out.push_str(&grasp.replacen("sim grasp:", "grasp and placement:", 1));
+    out
+}
+
+/// Packing runs: the targets, the packing rates, the failures, what chose the baskets.
+fn packing_section(out: &mut String, r: &RunResults) {
+    let s = &r.summary;
     if let (Some(spec), Some(p)) = (&r.run.packing, &s.packing) {
         let _ = writeln!(
             out,
@@ -139,6 +150,10 @@ pub fn pick_place_table(r: &RunResults) -> String {
             .collect();
         let _ = writeln!(out, "baskets chosen by: {}\n", decided.join(", "));
     }
+}
+
+/// Categories arriving over time: the first guesses at the switch and at the end.
+fn arrival_section(out: &mut String, r: &RunResults) {
     if let Some(e) = &r.arrival_evaluation {
         let a = &e.arrival;
         let _ = writeln!(
@@ -173,6 +188,11 @@ pub fn pick_place_table(r: &RunResults) -> String {
         }
         let _ = writeln!(out);
     }
+}
+
+/// Recognition and the teacher, the memory's growth, replay's time.
+fn recognition_section(out: &mut String, r: &RunResults) {
+    let s = &r.summary;
     if let Some(rec) = &r.recognition {
         let _ = writeln!(
             out,
@@ -220,10 +240,6 @@ pub fn pick_place_table(r: &RunResults) -> String {
             r.wall.replay_s, r.wall.attempts.recognition_s
         );
     }
-    // The grasp table's first line names the command that made it.
-    let grasp = summary_table(r);
-    out.push_str(&grasp.replacen("sim grasp:", "grasp and placement:", 1));
-    out
 }
 
 /// The failure reasons that occurred, as `reason n, reason n` (`none` when none did).

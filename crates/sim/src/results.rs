@@ -123,7 +123,7 @@ pub enum RoundEnd {
     GraspsExhausted,
     /// The per-round attempt cap.
     AttemptCap,
-    /// The run's attempt budget ([`RunSpec::max_attempts`]) was spent.
+    /// The run's attempt budget ([`crate::spec::RunSpec::max_attempts`]) was spent.
     AttemptBudget,
     /// The camera saw no object on the table.
     NothingSeen,

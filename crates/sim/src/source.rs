@@ -8,10 +8,10 @@
 //!   ([`lgdm_pointcloud::grasp::analytic`]).
 //! - [`RandomSource`] (`random`): a baseline — a random object pixel, a random angle and a random
 //!   opening within the stroke, seeded.
-//! - `network`: the grasp autoencoder through `lgdm_pybridge` lives in the cli behind its `ae`
-//!   feature (so this crate never needs torch) and implements this trait there
-//!   (`NetworkSource`, loaded once per run; the crop → maps → decoded grasps in crop pixels is
-//!   `lgdm_pybridge::ae::grasps`).
+//! - `network`: the grasp autoencoder implements this trait in the bridge, behind its `ae`
+//!   feature (`lgdm_pybridge::ae::robot::NetworkSource`, loaded once per run; the crop → maps →
+//!   decoded grasps in crop pixels is `lgdm_pybridge::ae::grasps`), so this crate never needs
+//!   torch.
 //!
 //! ```
 //! use lgdm_pointcloud::crop::ObjectCrop;

@@ -233,7 +233,7 @@ pub enum SimError {
 }
 
 /// A built-in grasp source by name: `analytic` or `random` (seeded from the run's seed).
-/// `network` lives in the cli (feature `ae`).
+/// `network` is `lgdm_pybridge::ae::robot::NetworkSource` (feature `ae`).
 pub fn builtin_source(name: &str, seed: u64) -> Result<Box<dyn GraspSource>, SimError> {
     match name {
         "analytic" => Ok(Box::new(AnalyticSource::new())),
