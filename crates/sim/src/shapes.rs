@@ -15,6 +15,11 @@
 //! kept wobbling on the table and in the basket. The cost: VHACD takes 0.1–0.5 s per object
 //! (computed once per library object and run, on first use) and more contacts per step.
 //!
+//! Every convex hull a [`World`] builds — a single hull or each part — has its big flat faces
+//! thinned to [`crate::world::WorldConfig::max_face_vertices`] vertices by farthest-point
+//! sampling (`thinned_hull`): an upright can whose base is a 32-gon otherwise rocks until it
+//! topples.
+//!
 //! ```
 //! use lgdm_pointcloud::objects::procedural_object;
 //! use lgdm_sim::shapes::{ShapeConfig, decompose};
@@ -28,6 +33,7 @@ use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::ObjectModel;
 use rapier3d::math::Vector;
 use rapier3d::parry::transformation::vhacd::{VHACD, VHACDParameters};
+use rapier3d::prelude::SharedShape;
 use serde::{Deserialize, Serialize};
 
 use crate::world::{DropRegion, ObjectHandle, World, WorldError};
@@ -137,6 +143,83 @@ fn base_slab(mesh: &Mesh, thickness: f32) -> Option<Vec<[f32; 3]>> {
     }
     let lifted = bottom.iter().map(|v| [v[0], v[1], v[2] + thickness]);
     Some(bottom.iter().copied().chain(lifted).collect())
+}
+
+/// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
+/// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
+/// have no hull. Every collider [`World`] builds goes through here (see
+/// [`crate::world::WorldConfig::max_face_vertices`] for why).
+pub(crate) fn thinned_hull(points: &[Vector], max_face: usize) -> Option<SharedShape> {
+    let mut shape = SharedShape::convex_hull(points)?;
+    for _ in 0..3 {
+        let Some(kept) = shape
+            .as_convex_polyhedron()
+            .and_then(|h| thin_big_faces(h, max_face))
+        else {
+            break;
+        };
+        match SharedShape::convex_hull(&kept) {
+            Some(thinner) => shape = thinner,
+            None => break,
+        }
+    }
+    Some(shape)
+}
+
+/// The hull's points without the surplus vertices of faces that have more than `max_face`:
+/// `None` when no face is that big. The vertices a big face keeps are spread by farthest-point
+/// sampling from its first vertex (deterministic).
+fn thin_big_faces(
+    hull: &rapier3d::parry::shape::ConvexPolyhedron,
+    max_face: usize,
+) -> Option<Vec<Vector>> {
+    let points = hull.points();
+    let adjacency = hull.vertices_adj_to_face();
+    let mut drop = vec![false; points.len()];
+    let mut any = false;
+    for face in hull.faces() {
+        let first = face.first_vertex_or_edge as usize;
+        let count = face.num_vertices_or_edges as usize;
+        if count <= max_face {
+            continue;
+        }
+        any = true;
+        let ids: Vec<usize> = adjacency[first..first + count]
+            .iter()
+            .map(|&i| i as usize)
+            .collect();
+        let mut kept = vec![false; count];
+        kept[0] = true;
+        let mut nearest: Vec<f32> = ids
+            .iter()
+            .map(|&i| points[i].distance_squared(points[ids[0]]))
+            .collect();
+        for _ in 1..max_face {
+            let (next, _) = nearest
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(&a.0)))
+                .expect("a big face has vertices");
+            kept[next] = true;
+            let p = points[ids[next]];
+            for (d, &i) in nearest.iter_mut().zip(&ids) {
+                *d = d.min(points[i].distance_squared(p));
+            }
+        }
+        for (k, &i) in ids.iter().enumerate() {
+            if !kept[k] {
+                drop[i] = true;
+            }
+        }
+    }
+    any.then(|| {
+        points
+            .iter()
+            .zip(&drop)
+            .filter(|(_, d)| !**d)
+            .map(|(p, _)| *p)
+            .collect()
+    })
 }
 
 /// Drops library object `index` like [`World::drop_object`] (the same draws from `rng`: x, y,
@@ -251,5 +334,57 @@ impl LibraryShapes {
             None => self.drawings[index] = Some(world.object_collider_mesh(handle)?.clone()),
         }
         Ok(handle)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::world::{World, WorldConfig};
+    use lgdm_pointcloud::math::translation;
+
+    /// The simplified hulls keep the meshes' extents: along 16 horizontal directions and
+    /// vertically, the hull's support is within 4 mm of the mesh's, and no face has more than
+    /// `max_face_vertices` vertices.
+    #[test]
+    fn thinned_hulls_stay_close_to_the_meshes() {
+        let mut world = World::new(WorldConfig::default()).unwrap();
+        let max_face = world.config().max_face_vertices as usize;
+        for (i, category) in lgdm_pointcloud::objects::CATEGORIES.iter().enumerate() {
+            for instance in 0..2 {
+                let mesh =
+                    lgdm_pointcloud::objects::procedural_object(category, instance, 5).unwrap();
+                let at = translation([0.6 * (i as f32 / 10.0 - 0.5), -0.6, 1.5]);
+                let h = world.spawn_object(category, &mesh, &at).unwrap();
+                let hull = world.object_hull_points_m(h).unwrap();
+                let mut dirs: Vec<[f32; 3]> = (0..16)
+                    .map(|k| {
+                        let a = k as f32 * std::f32::consts::TAU / 16.0;
+                        [a.cos(), a.sin(), 0.0]
+                    })
+                    .collect();
+                dirs.extend([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]);
+                for d in dirs {
+                    let support = |pts: &mut dyn Iterator<Item = [f32; 3]>| {
+                        pts.map(|p| p[0] * d[0] + p[1] * d[1] + p[2] * d[2])
+                            .fold(f32::NEG_INFINITY, f32::max)
+                    };
+                    let from_mesh = support(&mut mesh.vertices.iter().copied());
+                    let from_hull = support(&mut hull.iter().copied());
+                    assert!(
+                        from_hull <= from_mesh + 1e-5 && from_mesh - from_hull < 4e-3,
+                        "{category} {instance} along {d:?}: mesh {from_mesh} hull {from_hull}"
+                    );
+                }
+                let collider = world.object_collider(h).unwrap();
+                let shape = world.physics.colliders[collider].shape();
+                let poly = shape.as_convex_polyhedron().unwrap();
+                assert!(
+                    poly.faces()
+                        .iter()
+                        .all(|f| f.num_vertices_or_edges as usize <= max_face),
+                    "{category} {instance}"
+                );
+            }
+        }
     }
 }

@@ -21,6 +21,11 @@
 //! what the pointcloud crate's renderer needs to draw the mesh. A mesh whose hull cannot be
 //! built, or an object larger than the table, is a typed error naming the object.
 //!
+//! Here: the configuration ([`WorldConfig`] and its parts, validated by [`World::new`]) and the
+//! errors, the [`World`] (scenery, objects, stepping, settling, drops in a [`DropRegion`]), and
+//! the pose conversions at the boundary to rapier's math types. How collider shapes are built —
+//! decompositions and the thinning of big hull faces — is [`crate::shapes`].
+//!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
 //! use lgdm_pointcloud::math::translation;
@@ -46,10 +51,69 @@ use rapier3d::prelude::{
 };
 use serde::{Deserialize, Serialize};
 
+use crate::shapes::thinned_hull;
+
 /// rapier's glam-based math types, used only at this boundary.
 pub(crate) type RVec = rapier3d::math::Vector;
 pub(crate) type RQuat = rapier3d::math::Rotation;
 pub(crate) type RPose = rapier3d::math::Pose;
+
+// Conversions at that boundary: lgdm poses (f32, rotation matrix) and the arm's f64
+// isometries to and from rapier's poses.
+
+/// An lgdm pose (rotation matrix, f32) as a rapier pose; `None` if not finite.
+pub(crate) fn pose_to_rapier(pose: &Pose) -> Option<RPose> {
+    let t = pose.translation.vector;
+    let m = pose.rotation.matrix();
+    if !(t.iter().all(|v| v.is_finite()) && m.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    Some(RPose::from_parts(
+        RVec::new(t.x, t.y, t.z),
+        RQuat::from_xyzw(q.i, q.j, q.k, q.w).normalize(),
+    ))
+}
+
+/// A rapier pose as an lgdm pose (rotation matrix, f32).
+pub(crate) fn rapier_to_pose(pose: &RPose) -> Pose {
+    let q = pose.rotation;
+    let t = pose.translation;
+    let rotation = UnitQuaternion::new_normalize(Quaternion::new(q.w, q.x, q.y, q.z));
+    Pose::from_parts(
+        Translation3::new(t.x, t.y, t.z),
+        rotation.to_rotation_matrix(),
+    )
+}
+
+/// An f64 isometry (the arm's frames) as a rapier pose; `None` if not finite.
+pub(crate) fn isometry_to_rapier(pose: &Isometry3<f64>) -> Option<RPose> {
+    let t = pose.translation.vector;
+    let q = pose.rotation;
+    let all = [t.x, t.y, t.z, q.i, q.j, q.k, q.w];
+    if !all.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some(RPose::from_parts(
+        RVec::new(t.x as f32, t.y as f32, t.z as f32),
+        RQuat::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize(),
+    ))
+}
+
+/// A rapier pose as an f64 isometry.
+pub(crate) fn rapier_to_isometry(pose: &RPose) -> Isometry3<f64> {
+    let q = pose.rotation;
+    let t = pose.translation;
+    Isometry3::from_parts(
+        Translation3::new(f64::from(t.x), f64::from(t.y), f64::from(t.z)),
+        UnitQuaternion::new_normalize(Quaternion::new(
+            f64::from(q.w),
+            f64::from(q.x),
+            f64::from(q.y),
+            f64::from(q.z),
+        )),
+    )
+}
 
 /// Collision group of fixed scenery: table, baskets, floor, arm pedestal.
 pub(crate) const GROUP_STATIC: Group = Group::GROUP_1;
@@ -1268,12 +1332,6 @@ fn hull_points(name: &str, mesh: &Mesh) -> Result<Vec<RVec>, WorldError> {
     Ok(points)
 }
 
-/// The hull's points without the surplus vertices of faces that have more than `max_face`:
-/// `None` when no face is that big. The vertices a big face keeps are spread by farthest-point
-/// sampling from its first vertex (deterministic).
-/// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
-/// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
-/// have no hull.
 /// Triangles of the convex hulls of `parts` (object frame), each coloured like the mesh triangle
 /// nearest its centroid.
 fn collider_drawing(parts: &[Vec<RVec>], mesh: &Mesh) -> Mesh {
@@ -1312,76 +1370,6 @@ fn collider_drawing(parts: &[Vec<RVec>], mesh: &Mesh) -> Mesh {
     out
 }
 
-fn thinned_hull(points: &[RVec], max_face: usize) -> Option<SharedShape> {
-    let mut shape = SharedShape::convex_hull(points)?;
-    for _ in 0..3 {
-        let Some(kept) = shape
-            .as_convex_polyhedron()
-            .and_then(|h| thin_big_faces(h, max_face))
-        else {
-            break;
-        };
-        match SharedShape::convex_hull(&kept) {
-            Some(thinner) => shape = thinner,
-            None => break,
-        }
-    }
-    Some(shape)
-}
-
-fn thin_big_faces(
-    hull: &rapier3d::parry::shape::ConvexPolyhedron,
-    max_face: usize,
-) -> Option<Vec<RVec>> {
-    let points = hull.points();
-    let adjacency = hull.vertices_adj_to_face();
-    let mut drop = vec![false; points.len()];
-    let mut any = false;
-    for face in hull.faces() {
-        let first = face.first_vertex_or_edge as usize;
-        let count = face.num_vertices_or_edges as usize;
-        if count <= max_face {
-            continue;
-        }
-        any = true;
-        let ids: Vec<usize> = adjacency[first..first + count]
-            .iter()
-            .map(|&i| i as usize)
-            .collect();
-        let mut kept = vec![false; count];
-        kept[0] = true;
-        let mut nearest: Vec<f32> = ids
-            .iter()
-            .map(|&i| points[i].distance_squared(points[ids[0]]))
-            .collect();
-        for _ in 1..max_face {
-            let (next, _) = nearest
-                .iter()
-                .enumerate()
-                .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(&a.0)))
-                .expect("a big face has vertices");
-            kept[next] = true;
-            let p = points[ids[next]];
-            for (d, &i) in nearest.iter_mut().zip(&ids) {
-                *d = d.min(points[i].distance_squared(p));
-            }
-        }
-        for (k, &i) in ids.iter().enumerate() {
-            if !kept[k] {
-                drop[i] = true;
-            }
-        }
-    }
-    any.then(|| {
-        points
-            .iter()
-            .zip(&drop)
-            .filter(|(_, d)| !**d)
-            .map(|(p, _)| *p)
-            .collect()
-    })
-}
-
 fn bounds(points: &[RVec]) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
@@ -1392,60 +1380,6 @@ fn bounds(points: &[RVec]) -> ([f32; 3], [f32; 3]) {
         }
     }
     (lo, hi)
-}
-
-/// An lgdm pose (rotation matrix, f32) as a rapier pose; `None` if not finite.
-pub(crate) fn pose_to_rapier(pose: &Pose) -> Option<RPose> {
-    let t = pose.translation.vector;
-    let m = pose.rotation.matrix();
-    if !(t.iter().all(|v| v.is_finite()) && m.iter().all(|v| v.is_finite())) {
-        return None;
-    }
-    let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
-    Some(RPose::from_parts(
-        RVec::new(t.x, t.y, t.z),
-        RQuat::from_xyzw(q.i, q.j, q.k, q.w).normalize(),
-    ))
-}
-
-/// A rapier pose as an lgdm pose (rotation matrix, f32).
-pub(crate) fn rapier_to_pose(pose: &RPose) -> Pose {
-    let q = pose.rotation;
-    let t = pose.translation;
-    let rotation = UnitQuaternion::new_normalize(Quaternion::new(q.w, q.x, q.y, q.z));
-    Pose::from_parts(
-        Translation3::new(t.x, t.y, t.z),
-        rotation.to_rotation_matrix(),
-    )
-}
-
-/// An f64 isometry (the arm's frames) as a rapier pose; `None` if not finite.
-pub(crate) fn isometry_to_rapier(pose: &Isometry3<f64>) -> Option<RPose> {
-    let t = pose.translation.vector;
-    let q = pose.rotation;
-    let all = [t.x, t.y, t.z, q.i, q.j, q.k, q.w];
-    if !all.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    Some(RPose::from_parts(
-        RVec::new(t.x as f32, t.y as f32, t.z as f32),
-        RQuat::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize(),
-    ))
-}
-
-/// A rapier pose as an f64 isometry.
-pub(crate) fn rapier_to_isometry(pose: &RPose) -> Isometry3<f64> {
-    let q = pose.rotation;
-    let t = pose.translation;
-    Isometry3::from_parts(
-        Translation3::new(f64::from(t.x), f64::from(t.y), f64::from(t.z)),
-        UnitQuaternion::new_normalize(Quaternion::new(
-            f64::from(q.w),
-            f64::from(q.x),
-            f64::from(q.y),
-            f64::from(q.z),
-        )),
-    )
 }
 
 #[cfg(test)]
@@ -1580,52 +1514,6 @@ mod tests {
             .spawn_object("big", &big, &translation([0.2, -0.6, 0.8]))
             .unwrap();
         assert!((world.object_mass_kg(h).unwrap() - 0.5).abs() < 1e-6);
-    }
-
-    /// The simplified hulls keep the meshes' extents: along 16 horizontal directions and
-    /// vertically, the hull's support is within 4 mm of the mesh's, and no face has more than
-    /// `max_face_vertices` vertices.
-    #[test]
-    fn thinned_hulls_stay_close_to_the_meshes() {
-        let mut world = World::new(WorldConfig::default()).unwrap();
-        let max_face = world.config().max_face_vertices as usize;
-        for (i, category) in lgdm_pointcloud::objects::CATEGORIES.iter().enumerate() {
-            for instance in 0..2 {
-                let mesh =
-                    lgdm_pointcloud::objects::procedural_object(category, instance, 5).unwrap();
-                let at = translation([0.6 * (i as f32 / 10.0 - 0.5), -0.6, 1.5]);
-                let h = world.spawn_object(category, &mesh, &at).unwrap();
-                let hull = world.object_hull_points_m(h).unwrap();
-                let mut dirs: Vec<[f32; 3]> = (0..16)
-                    .map(|k| {
-                        let a = k as f32 * std::f32::consts::TAU / 16.0;
-                        [a.cos(), a.sin(), 0.0]
-                    })
-                    .collect();
-                dirs.extend([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]);
-                for d in dirs {
-                    let support = |pts: &mut dyn Iterator<Item = [f32; 3]>| {
-                        pts.map(|p| p[0] * d[0] + p[1] * d[1] + p[2] * d[2])
-                            .fold(f32::NEG_INFINITY, f32::max)
-                    };
-                    let from_mesh = support(&mut mesh.vertices.iter().copied());
-                    let from_hull = support(&mut hull.iter().copied());
-                    assert!(
-                        from_hull <= from_mesh + 1e-5 && from_mesh - from_hull < 4e-3,
-                        "{category} {instance} along {d:?}: mesh {from_mesh} hull {from_hull}"
-                    );
-                }
-                let collider = world.entry(h).unwrap().collider;
-                let shape = world.physics.colliders[collider].shape();
-                let poly = shape.as_convex_polyhedron().unwrap();
-                assert!(
-                    poly.faces()
-                        .iter()
-                        .all(|f| f.num_vertices_or_edges as usize <= max_face),
-                    "{category} {instance}"
-                );
-            }
-        }
     }
 
     #[test]
