@@ -46,7 +46,7 @@ use crate::perception::{ObjectView, WorldGrasp};
 use crate::robot::{Robot, RobotConfig, RobotError};
 use crate::timing::{WallTimes, Work};
 use crate::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
-use crate::world::{ObjectHandle, RVec, World, WorldError};
+use crate::world::{BasketConfig, ObjectHandle, RVec, World, WorldError};
 
 /// How an attempt moves and how it is judged. Defaults are stated per field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -764,10 +764,10 @@ pub fn width_between_pads_m(
 }
 
 /// Runs one grasp attempt from the current state of `cell` (the arm parked, the gripper open):
-/// approach, descend, close, lift, judge, carry, release, judge. `target` is the object the
-/// grasp aimed at (for judging when nothing was pinched); `rest_com_z` gives every live object's
-/// resting centre-of-mass height at the start. The arm is left where the attempt ended; see
-/// [`park`].
+/// approach, descend, close, lift, judge, carry, release, judge (one private function per
+/// phase). `target` is the object the grasp aimed at (for judging when nothing was pinched);
+/// every live object's resting centre-of-mass height is read at the start, for the rise. The
+/// arm is left where the attempt ended; see [`park`].
 pub fn execute(
     cell: &mut Cell,
     plan: &GraspPlan,
@@ -775,206 +775,336 @@ pub fn execute(
     config: &AttemptConfig,
     wall: &mut WallTimes,
 ) -> Result<Execution, AttemptError> {
-    let mut out = Execution::default();
     let rest: Vec<(ObjectHandle, f32)> = cell
         .world
         .objects()
         .map(|h| Ok((h, cell.world.object_center_of_mass_m(h)?[2])))
         .collect::<Result<_, WorldError>>()?;
-    let rest_z = |h: ObjectHandle| rest.iter().find(|(o, _)| *o == h).map(|(_, z)| *z);
-    let yaw = plan.grasp.yaw_rad;
-    let [x, y, z] = plan.tcp_m;
-    let fail = |mut out: Execution, reason| {
-        out.reason = Some(reason);
-        Ok(out)
+    let mut attempt = Attempt {
+        cell,
+        plan,
+        config,
+        wall,
+        out: Execution::default(),
     };
+    match attempt.run(target, &rest) {
+        Ok(()) => Ok(attempt.out),
+        Err(Stop::Failed(reason)) => {
+            attempt.out.reason = Some(reason);
+            Ok(attempt.out)
+        }
+        Err(Stop::Error(e)) => Err(e),
+    }
+}
 
-    // 1. Pre-grasp: a straight move down from the ready pose, opening meanwhile.
-    cell.robot
-        .gripper_mut()
-        .set_opening(plan.opening_m as f32)?;
-    let Ok(approach) =
-        plan_straight_top_down(cell, [x, y, plan.pregrasp_z_m], yaw, &config.transit, wall)
-    else {
-        return fail(out, FailureReason::Unreachable);
-    };
-    let m = follow(cell, &approach, false, wall)?;
-    out.measured.arm_collision |= m.arm_collision;
-    settle_opening(cell, 1.0, wall)?;
+/// Why the phases of an attempt ended early: the grasp or the placement failed (the
+/// [`Execution`] says how far it got), or an error aborts the attempt.
+enum Stop {
+    Failed(FailureReason),
+    Error(AttemptError),
+}
 
-    // 2. Guarded straight descent.
-    let Ok(descent) = plan_straight(cell, [x, y, z], &config.descent, wall) else {
-        return fail(out, FailureReason::Unreachable);
-    };
-    let m = follow(cell, &descent, true, wall)?;
-    out.measured.arm_collision |= m.arm_collision;
-    out.measured.descent_stopped = m.stopped_by_contact;
-    let reached_z = cell.robot.world_from_tool().translation.vector.z;
-    out.measured.descent_stop_above_plan_m = if m.stopped_by_contact {
-        (reached_z - z).max(0.0)
-    } else {
-        0.0
-    };
-    let collided =
-        out.measured.arm_collision || out.measured.descent_stop_above_plan_m > config.early_stop_m;
+impl From<AttemptError> for Stop {
+    fn from(e: AttemptError) -> Self {
+        Self::Error(e)
+    }
+}
 
-    // 3. Close and squeeze.
-    cell.robot.gripper_mut().set_opening(0.0)?;
-    settle_opening(cell, config.close_timeout_s, wall)?;
-    hold(cell, config.squeeze_s, wall)?;
-    let gap = cell.robot.gripper().finger_gap_m(&cell.world);
-    out.measured.gap_after_close_m = Some(gap);
-    let closed_gap = cell.robot.gripper().config().closed_gap_m;
-    let pinched = pinched_objects(cell);
-    out.measured.pinched_after_close = pinched.len() == 1 && gap >= closed_gap;
-    let judged = if pinched.len() == 1 {
-        Some(pinched[0])
-    } else {
-        pinched.first().copied().or(target)
-    };
-    if out.measured.pinched_after_close {
-        out.pinched_object = judged;
+impl From<WorldError> for Stop {
+    fn from(e: WorldError) -> Self {
+        Self::Error(e.into())
+    }
+}
+
+impl From<RobotError> for Stop {
+    fn from(e: RobotError) -> Self {
+        Self::Error(e.into())
+    }
+}
+
+/// Where the guarded descent ended.
+struct Descent {
+    /// Tool height where the descent stopped (m).
+    reached_z_m: f64,
+    /// The arm touched an object, or the descent stopped early (see
+    /// [`AttemptConfig::early_stop_m`]).
+    collided: bool,
+}
+
+/// One attempt in progress: the phases of [`execute`] as methods, each adding its measurements
+/// to `out`.
+struct Attempt<'a> {
+    cell: &'a mut Cell,
+    plan: &'a GraspPlan,
+    config: &'a AttemptConfig,
+    wall: &'a mut WallTimes,
+    out: Execution,
+}
+
+impl Attempt<'_> {
+    /// The phases in order; `rest` holds every live object's resting centre-of-mass height.
+    fn run(
+        &mut self,
+        target: Option<ObjectHandle>,
+        rest: &[(ObjectHandle, f32)],
+    ) -> Result<(), Stop> {
+        self.approach()?;
+        let descent = self.descend()?;
+        let judged = self.close(target)?;
+        self.lift(descent.reached_z_m)?;
+        let object = self.judge_grasp(judged, descent.collided, rest)?;
+        let basket = self.carry(object)?;
+        self.release(&basket)?;
+        self.judge_placement(object, &basket)
     }
 
-    // 4. Lift, then hold and judge.
-    let lifted_z = reached_z + config.lift_height_m;
-    let Ok(lift) = plan_straight(cell, [x, y, lifted_z], &config.lift, wall) else {
-        return fail(out, FailureReason::Unreachable);
-    };
-    follow(cell, &lift, false, wall)?;
-    let touching = touching_objects(cell);
-    out.measured.objects_touching_after_lift = touching.len();
-    out.contact_only_success = touching.len() == 1;
-    let Some(object) = judged else {
-        let reason = if collided {
+    /// Phase 1, pre-grasp: a straight move down from the ready pose, opening meanwhile.
+    fn approach(&mut self) -> Result<(), Stop> {
+        let [x, y, _] = self.plan.tcp_m;
+        self.cell
+            .robot
+            .gripper_mut()
+            .set_opening(self.plan.opening_m as f32)?;
+        let Ok(approach) = plan_straight_top_down(
+            self.cell,
+            [x, y, self.plan.pregrasp_z_m],
+            self.plan.grasp.yaw_rad,
+            &self.config.transit,
+            self.wall,
+        ) else {
+            return Err(Stop::Failed(FailureReason::Unreachable));
+        };
+        let m = follow(self.cell, &approach, false, self.wall)?;
+        self.out.measured.arm_collision |= m.arm_collision;
+        settle_opening(self.cell, 1.0, self.wall)?;
+        Ok(())
+    }
+
+    /// Phase 2: a guarded straight descent to the grasp height.
+    fn descend(&mut self) -> Result<Descent, Stop> {
+        let [x, y, z] = self.plan.tcp_m;
+        let Ok(descent) = plan_straight(self.cell, [x, y, z], &self.config.descent, self.wall)
+        else {
+            return Err(Stop::Failed(FailureReason::Unreachable));
+        };
+        let m = follow(self.cell, &descent, true, self.wall)?;
+        let measured = &mut self.out.measured;
+        measured.arm_collision |= m.arm_collision;
+        measured.descent_stopped = m.stopped_by_contact;
+        let reached_z = self.cell.robot.world_from_tool().translation.vector.z;
+        measured.descent_stop_above_plan_m = if m.stopped_by_contact {
+            (reached_z - z).max(0.0)
+        } else {
+            0.0
+        };
+        let collided =
+            measured.arm_collision || measured.descent_stop_above_plan_m > self.config.early_stop_m;
+        Ok(Descent {
+            reached_z_m: reached_z,
+            collided,
+        })
+    }
+
+    /// Phase 3: close and squeeze. Returns the object to judge: the one pinched, else the first
+    /// of several pinched, else `target`.
+    fn close(&mut self, target: Option<ObjectHandle>) -> Result<Option<ObjectHandle>, Stop> {
+        let cell = &mut *self.cell;
+        cell.robot.gripper_mut().set_opening(0.0)?;
+        settle_opening(cell, self.config.close_timeout_s, self.wall)?;
+        hold(cell, self.config.squeeze_s, self.wall)?;
+        let gap = cell.robot.gripper().finger_gap_m(&cell.world);
+        self.out.measured.gap_after_close_m = Some(gap);
+        let closed_gap = cell.robot.gripper().config().closed_gap_m;
+        let pinched = pinched_objects(cell);
+        self.out.measured.pinched_after_close = pinched.len() == 1 && gap >= closed_gap;
+        let judged = if pinched.len() == 1 {
+            Some(pinched[0])
+        } else {
+            pinched.first().copied().or(target)
+        };
+        if self.out.measured.pinched_after_close {
+            self.out.pinched_object = judged;
+        }
+        Ok(judged)
+    }
+
+    /// Phase 4: lift straight up from where the descent stopped; count what touches the pads
+    /// then (the paper's contact-only criterion).
+    fn lift(&mut self, reached_z_m: f64) -> Result<(), Stop> {
+        let [x, y, _] = self.plan.tcp_m;
+        let lifted_z = reached_z_m + self.config.lift_height_m;
+        let Ok(lift) = plan_straight(self.cell, [x, y, lifted_z], &self.config.lift, self.wall)
+        else {
+            return Err(Stop::Failed(FailureReason::Unreachable));
+        };
+        follow(self.cell, &lift, false, self.wall)?;
+        let touching = touching_objects(self.cell);
+        self.out.measured.objects_touching_after_lift = touching.len();
+        self.out.contact_only_success = touching.len() == 1;
+        Ok(())
+    }
+
+    /// Phase 4: hold, then judge the grasp of `judged` (see the module docs). Returns the object
+    /// held.
+    fn judge_grasp(
+        &mut self,
+        judged: Option<ObjectHandle>,
+        collided: bool,
+        rest: &[(ObjectHandle, f32)],
+    ) -> Result<ObjectHandle, Stop> {
+        let missed = if collided {
             FailureReason::CollisionOnApproach
         } else {
             FailureReason::Missed
         };
-        return fail(out, reason);
-    };
-    let rise = |cell: &Cell| -> Result<f32, WorldError> {
-        Ok(cell.world.object_center_of_mass_m(object)?[2] - rest_z(object).unwrap_or(f32::NAN))
-    };
-    out.measured.rise_after_lift_m = Some(rise(cell)?);
-    let hold_steps = (config.hold_s / f64::from(cell.world.dt_s())).round() as u32;
-    let mut min_rise = rise(cell)?;
-    wall.time(Work::Physics, || {
-        for _ in 0..hold_steps {
-            cell.robot.step(&mut cell.world)?;
-            min_rise = min_rise.min(rise(cell)?);
-        }
-        Ok::<_, AttemptError>(())
-    })?;
-    out.measured.min_rise_during_hold_m = Some(min_rise);
-    let reading = cell.robot.gripper().grip_reading(&cell.world, object)?;
-    out.measured.gap_after_hold_m = Some(reading.gap_m);
-    let width = width_between_pads_m(&cell.world, cell.robot.gripper(), object)?;
-    out.measured.width_between_pads_m = width;
-    let wide_enough = width.is_none_or(|w| reading.gap_m >= w - config.width_tolerance_m);
-    out.grasp_success = min_rise >= config.success_rise_m && reading.pinching() && wide_enough;
-    if !out.grasp_success {
-        let reason = if !out.measured.pinched_after_close {
-            if collided {
-                FailureReason::CollisionOnApproach
-            } else {
-                FailureReason::Missed
-            }
-        } else {
-            FailureReason::SlippedDuringLift
+        let Some(object) = judged else {
+            return Err(Stop::Failed(missed));
         };
-        return fail(out, reason);
+        let rest_z = rest.iter().find(|(o, _)| *o == object).map(|(_, z)| *z);
+        let rise = |cell: &Cell| -> Result<f32, WorldError> {
+            Ok(cell.world.object_center_of_mass_m(object)?[2] - rest_z.unwrap_or(f32::NAN))
+        };
+        let (config, out) = (self.config, &mut self.out);
+        let cell = &mut *self.cell;
+        out.measured.rise_after_lift_m = Some(rise(cell)?);
+        let hold_steps = (config.hold_s / f64::from(cell.world.dt_s())).round() as u32;
+        let mut min_rise = rise(cell)?;
+        self.wall.time(Work::Physics, || {
+            for _ in 0..hold_steps {
+                cell.robot.step(&mut cell.world)?;
+                min_rise = min_rise.min(rise(cell)?);
+            }
+            Ok::<_, AttemptError>(())
+        })?;
+        out.measured.min_rise_during_hold_m = Some(min_rise);
+        let reading = cell.robot.gripper().grip_reading(&cell.world, object)?;
+        out.measured.gap_after_hold_m = Some(reading.gap_m);
+        let width = width_between_pads_m(&cell.world, cell.robot.gripper(), object)?;
+        out.measured.width_between_pads_m = width;
+        let wide_enough = width.is_none_or(|w| reading.gap_m >= w - config.width_tolerance_m);
+        out.grasp_success = min_rise >= config.success_rise_m && reading.pinching() && wide_enough;
+        if !out.grasp_success {
+            let reason = if !out.measured.pinched_after_close {
+                missed
+            } else {
+                FailureReason::SlippedDuringLift
+            };
+            return Err(Stop::Failed(reason));
+        }
+        Ok(object)
     }
 
-    // 5. Carry to the basket, lower, release, back off, settle; judge the placement.
-    let Some(basket) = cell
-        .world
-        .config()
-        .baskets
-        .get(config.target_basket)
-        .cloned()
-    else {
-        return Err(AttemptError::InvalidConfig {
-            field: "target_basket",
-            reason: format!(
-                "basket {} of a world with {}",
-                config.target_basket,
-                cell.world.config().baskets.len()
-            ),
-        });
-    };
-    let [bx, by, floor_z] = basket.floor_center_m.map(f64::from);
-    let Some(carry) = plan_joint_move(cell, [bx, by, config.carry_height_m], yaw, wall) else {
-        return fail(out, FailureReason::Unreachable);
-    };
-    follow(cell, &carry, false, wall)?;
-    let still_held = |cell: &Cell| -> Result<bool, WorldError> {
-        Ok(cell
-            .robot
-            .gripper()
-            .grip_reading(&cell.world, object)?
-            .pinching())
-    };
-    if !still_held(cell)? {
-        return fail(out, FailureReason::SlippedDuringCarry);
+    /// Phase 5: carry `object` to the target basket at the carry height and lower it until
+    /// its lowest collider point is just above the basket floor. Returns the basket.
+    fn carry(&mut self, object: ObjectHandle) -> Result<BasketConfig, Stop> {
+        let config = self.config;
+        let baskets = &self.cell.world.config().baskets;
+        let Some(basket) = baskets.get(config.target_basket).cloned() else {
+            return Err(Stop::Error(AttemptError::InvalidConfig {
+                field: "target_basket",
+                reason: format!(
+                    "basket {} of a world with {}",
+                    config.target_basket,
+                    baskets.len()
+                ),
+            }));
+        };
+        let [bx, by, floor_z] = basket.floor_center_m.map(f64::from);
+        let above = [bx, by, config.carry_height_m];
+        let Some(carry) = plan_joint_move(self.cell, above, self.plan.grasp.yaw_rad, self.wall)
+        else {
+            return Err(Stop::Failed(FailureReason::Unreachable));
+        };
+        follow(self.cell, &carry, false, self.wall)?;
+        if !still_holds(self.cell, object)? {
+            return Err(Stop::Failed(FailureReason::SlippedDuringCarry));
+        }
+        // Lower until the object's lowest collider point is just above the basket floor.
+        let tcp_z = self.cell.robot.world_from_tool().translation.vector.z;
+        let pose = self.cell.world.object_pose(object)?;
+        let lowest = self
+            .cell
+            .world
+            .object_hull_points_m(object)?
+            .iter()
+            .map(|p| f64::from(transform_point(&pose, *p)[2]))
+            .fold(f64::INFINITY, f64::min);
+        let below = if lowest.is_finite() {
+            tcp_z - lowest
+        } else {
+            0.0
+        };
+        let release_z = (floor_z + below + config.release_clearance_m).min(tcp_z);
+        if release_z < tcp_z - 1e-3
+            && let Ok(lower) =
+                plan_straight(self.cell, [bx, by, release_z], &config.lift, self.wall)
+        {
+            follow(self.cell, &lower, false, self.wall)?;
+        }
+        if !still_holds(self.cell, object)? {
+            return Err(Stop::Failed(FailureReason::SlippedDuringCarry));
+        }
+        Ok(basket)
     }
-    // Lower until the object's lowest collider point is just above the basket floor.
-    let tcp_z = cell.robot.world_from_tool().translation.vector.z;
-    let pose = cell.world.object_pose(object)?;
-    let lowest = cell
-        .world
-        .object_hull_points_m(object)?
-        .iter()
-        .map(|p| f64::from(transform_point(&pose, *p)[2]))
-        .fold(f64::INFINITY, f64::min);
-    let below = if lowest.is_finite() {
-        tcp_z - lowest
-    } else {
-        0.0
-    };
-    let release_z = (floor_z + below + config.release_clearance_m).min(tcp_z);
-    if release_z < tcp_z - 1e-3
-        && let Ok(lower) = plan_straight(cell, [bx, by, release_z], &config.lift, wall)
-    {
-        follow(cell, &lower, false, wall)?;
+
+    /// Phase 5: open, wait, back off up to the carry height over `basket`, let the scene
+    /// settle.
+    fn release(&mut self, basket: &BasketConfig) -> Result<(), Stop> {
+        let config = self.config;
+        let [bx, by, _] = basket.floor_center_m.map(f64::from);
+        let stroke = self.cell.robot.gripper().config().stroke_m;
+        self.cell.robot.gripper_mut().set_opening(stroke)?;
+        settle_opening(self.cell, 2.0, self.wall)?;
+        hold(self.cell, config.release_wait_s, self.wall)?;
+        let up = [bx, by, config.carry_height_m];
+        if let Ok(up) = plan_straight(self.cell, up, &config.lift, self.wall) {
+            follow(self.cell, &up, false, self.wall)?;
+        }
+        let cell = &mut *self.cell;
+        self.wall.time(Work::Physics, || cell.world.settle());
+        Ok(())
     }
-    if !still_held(cell)? {
-        return fail(out, FailureReason::SlippedDuringCarry);
+
+    /// Phase 5: judge the placement: `object` at rest inside `basket`.
+    fn judge_placement(&mut self, object: ObjectHandle, basket: &BasketConfig) -> Result<(), Stop> {
+        let world = &self.cell.world;
+        let out = &mut self.out;
+        let com = world.object_center_of_mass_m(object)?;
+        out.measured.placed_at_m = Some(com);
+        // Inside: the centre of mass between the walls, resting on the floor (its lowest point
+        // between the floor and the wall tops; a tall object's centre may stand above them).
+        let (lo, hi) = basket.inner_bounds_m();
+        let pose = world.object_pose(object)?;
+        let lowest = world
+            .object_hull_points_m(object)?
+            .iter()
+            .map(|p| transform_point(&pose, *p)[2])
+            .fold(f32::INFINITY, f32::min);
+        let lowest = if lowest.is_finite() { lowest } else { com[2] };
+        let inside = (0..2).all(|i| com[i] > lo[i] && com[i] < hi[i])
+            && lowest > lo[2] - 0.01
+            && lowest < hi[2];
+        let (v, w) = world.object_velocity(object)?;
+        let speed = v.iter().map(|c| c * c).sum::<f32>().sqrt();
+        let spin = w.iter().map(|c| c * c).sum::<f32>().sqrt();
+        let at_rest = speed < 0.02 && spin < 0.2;
+        out.measured.placed_motion = Some([speed, spin]);
+        out.measured.placed_lowest_z_m = Some(lowest);
+        out.placement_success = inside && at_rest;
+        if !out.placement_success {
+            return Err(Stop::Failed(FailureReason::DroppedOutside));
+        }
+        Ok(())
     }
-    let stroke = cell.robot.gripper().config().stroke_m;
-    cell.robot.gripper_mut().set_opening(stroke)?;
-    settle_opening(cell, 2.0, wall)?;
-    hold(cell, config.release_wait_s, wall)?;
-    if let Ok(up) = plan_straight(cell, [bx, by, config.carry_height_m], &config.lift, wall) {
-        follow(cell, &up, false, wall)?;
-    }
-    wall.time(Work::Physics, || cell.world.settle());
-    let com = cell.world.object_center_of_mass_m(object)?;
-    out.measured.placed_at_m = Some(com);
-    // Inside: the centre of mass between the walls, resting on the floor (its lowest point
-    // between the floor and the wall tops; a tall object's centre may stand above them).
-    let (lo, hi) = basket.inner_bounds_m();
-    let pose = cell.world.object_pose(object)?;
-    let lowest = cell
-        .world
-        .object_hull_points_m(object)?
-        .iter()
-        .map(|p| transform_point(&pose, *p)[2])
-        .fold(f32::INFINITY, f32::min);
-    let lowest = if lowest.is_finite() { lowest } else { com[2] };
-    let inside =
-        (0..2).all(|i| com[i] > lo[i] && com[i] < hi[i]) && lowest > lo[2] - 0.01 && lowest < hi[2];
-    let (v, w) = cell.world.object_velocity(object)?;
-    let speed = v.iter().map(|c| c * c).sum::<f32>().sqrt();
-    let spin = w.iter().map(|c| c * c).sum::<f32>().sqrt();
-    let at_rest = speed < 0.02 && spin < 0.2;
-    out.measured.placed_motion = Some([speed, spin]);
-    out.measured.placed_lowest_z_m = Some(lowest);
-    out.placement_success = inside && at_rest;
-    if !out.placement_success {
-        return fail(out, FailureReason::DroppedOutside);
-    }
-    Ok(out)
+}
+
+/// Whether both fingers still push on `object`.
+fn still_holds(cell: &Cell, object: ObjectHandle) -> Result<bool, WorldError> {
+    Ok(cell
+        .robot
+        .gripper()
+        .grip_reading(&cell.world, object)?
+        .pinching())
 }
 
 /// Backs the gripper off (opens it fully, rises straight up to the pre-grasp height `up_to_z_m`
