@@ -49,6 +49,7 @@ use lgdm_pointcloud::objects::ObjectModel;
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
 use rapier3d::parry::query::{distance, intersection_test};
+use rapier3d::prelude::ColliderHandle;
 use serde::{Deserialize, Serialize};
 
 use crate::shapes::LibraryShapes;
@@ -364,7 +365,8 @@ fn collider_distance(
 }
 
 /// Sets the table for one round: spawns `picks` (library indices) as `scenario` arranges them,
-/// each with its collider shape from `shapes`, and settles the scene. Returns the objects with their resting poses, in spawn order.
+/// each with its collider shape from `shapes`, and settles the scene. Returns the objects with
+/// their resting poses, in spawn order.
 pub fn set_table<R: Rng + ?Sized>(
     world: &mut World,
     scenario: Scenario,
@@ -375,195 +377,323 @@ pub fn set_table<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Result<Vec<PlacedObject>, WorldError> {
     config.validate()?;
-    let top = world.config().table.top_z_m();
-    let mut spawned: Vec<(ObjectHandle, usize, String)> = Vec::new();
-    let name_of = |index: usize, spawned: &[(ObjectHandle, usize, String)]| {
-        let base = library[index].name.clone();
-        let repeats = spawned.iter().filter(|s| s.1 == index).count();
+    let mut table = TableSetting {
+        world,
+        library,
+        shapes,
+        config,
+        spawned: Vec::new(),
+    };
+    match scenario {
+        Scenario::Isolated => table.isolated(picks, rng)?,
+        Scenario::Packed => table.packed(picks, rng)?,
+        Scenario::Scattered => table.scattered(picks, rng)?,
+        Scenario::Pile => table.pile(picks, rng)?,
+    }
+    table.placed()
+}
+
+/// A table being set for a round: the world, where the objects come from, and what has been
+/// spawned so far. One method per scenario.
+struct TableSetting<'a> {
+    world: &'a mut World,
+    library: &'a [ObjectModel],
+    shapes: &'a mut LibraryShapes,
+    config: &'a ScenarioConfig,
+    /// The objects spawned so far, in spawn order: handle, library index, name.
+    spawned: Vec<(ObjectHandle, usize, String)>,
+}
+
+impl TableSetting<'_> {
+    /// The name of the next object from library index `index`: the instance name, `#2`, `#3`, …
+    /// appended for a repeat.
+    fn name_of(&self, index: usize) -> String {
+        let base = self.library[index].name.clone();
+        let repeats = self.spawned.iter().filter(|s| s.1 == index).count();
         if repeats == 0 {
             base
         } else {
             format!("{base}#{}", repeats + 1)
         }
-    };
-    let [cx, cy] = config.clutter_center_xy_m;
-    match scenario {
-        Scenario::Isolated => {
-            for &i in picks {
-                let name = name_of(i, &spawned);
-                let h = crate::shapes::drop_object(
-                    shapes,
-                    world,
-                    i,
-                    &name,
-                    &library[i],
-                    &config.isolated_region,
-                    rng,
-                )?;
-                spawned.push((h, i, name));
-            }
-        }
-        Scenario::Packed => {
-            let sides = [[1.0f32, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]];
-            for (k, &i) in picks.iter().enumerate() {
-                let name = name_of(i, &spawned);
-                let rotation = uniform_yaw(rng);
-                let at = |d: f32| {
-                    let [dx, dy] = if k == 0 {
-                        [0.0, 0.0]
-                    } else {
-                        sides[(k - 1) % 4]
-                    };
-                    // A fifth side object and beyond start from the diagonals.
-                    let ring = if k == 0 { 0.0 } else { ((k - 1) / 4) as f32 };
-                    let (dx, dy) = if ring > 0.0 {
-                        (dx - dy, dy + dx)
-                    } else {
-                        (dx, dy)
-                    };
-                    Pose::from_parts(Translation3::new(cx + dx * d, cy + dy * d, top), rotation)
-                };
-                // Spawn at the start, then slide in until touching, and back off one step.
-                let start = if k == 0 { 0.0 } else { config.packed_start_m };
-                let h = shapes.spawn(world, i, &name, &library[i], &at(start))?;
-                let mut d = start;
-                if k > 0 {
-                    let mut last_free = start;
-                    while d > 0.0 {
-                        let mut touching = false;
-                        for (other, _, _) in &spawned {
-                            if hulls_intersect(world, h, &at(d), *other)? {
-                                touching = true;
-                                break;
-                            }
-                        }
-                        if touching {
-                            break;
-                        }
-                        last_free = d;
-                        d -= config.packed_step_m;
-                    }
-                    d = last_free;
-                }
-                world.reset_object_pose(h, &at(d))?;
-                spawned.push((h, i, name));
-            }
-            world.settle();
-        }
-        Scenario::Scattered => {
-            let r = config.scattered_half_extent_m;
-            for &i in picks {
-                let name = name_of(i, &spawned);
-                let rotation = uniform_yaw(rng);
-                let at = |x: f32, y: f32| Pose::from_parts(Translation3::new(x, y, top), rotation);
-                let h = shapes.spawn(world, i, &name, &library[i], &at(cx, cy))?;
-                // The first draw that keeps the clearance to every object, else the draw
-                // farthest from its nearest neighbour.
-                let mut best: Option<(f32, Pose)> = None;
-                for _ in 0..config.scattered_tries {
-                    let x = cx + r * rng.random_range(-1.0_f32..=1.0);
-                    let y = cy + r * rng.random_range(-1.0_f32..=1.0);
-                    let pose = at(x, y);
-                    let mut nearest = f32::INFINITY;
-                    for (other, _, _) in &spawned {
-                        nearest = nearest.min(collider_distance(world, h, &pose, *other)?);
-                    }
-                    if best.as_ref().is_none_or(|(d, _)| nearest > *d) {
-                        best = Some((nearest, pose));
-                    }
-                    if nearest >= config.scattered_clearance_m {
-                        break;
-                    }
-                }
-                if let Some((_, pose)) = best {
-                    world.reset_object_pose(h, &pose)?;
-                }
-                spawned.push((h, i, name));
-            }
-            world.settle();
-        }
-        Scenario::Pile => {
-            // A temporary box of four walls around the drop square; once the pile rests it is
-            // swapped for the wider one, and that is removed once the pile rests again.
-            let h = config.pile_box_height_m;
-            let walls_of = |world: &mut World, side: f32| -> Vec<_> {
-                let (inner, t) = (0.5 * side, 0.01f32);
-                [
-                    (
-                        [cx + inner + t, cy, top + 0.5 * h],
-                        [t, inner + 2.0 * t, 0.5 * h],
-                    ),
-                    (
-                        [cx - inner - t, cy, top + 0.5 * h],
-                        [t, inner + 2.0 * t, 0.5 * h],
-                    ),
-                    (
-                        [cx, cy + inner + t, top + 0.5 * h],
-                        [inner + 2.0 * t, t, 0.5 * h],
-                    ),
-                    (
-                        [cx, cy - inner - t, top + 0.5 * h],
-                        [inner + 2.0 * t, t, 0.5 * h],
-                    ),
-                ]
-                .into_iter()
-                .map(|(c, half)| {
-                    let mu = world.config().table.friction;
-                    world.add_fixed_box(c, half, mu)
-                })
-                .collect()
-            };
-            let walls = walls_of(world, config.pile_box_m[0]);
-            let s = config.pile_spread_m;
-            for &i in picks {
-                let name = name_of(i, &spawned);
-                let rotation = uniform_rotation(rng);
-                let x = cx + s * rng.random_range(-1.0_f32..=1.0);
-                let y = cy + s * rng.random_range(-1.0_f32..=1.0);
-                // Release above the pile so far.
-                let mut pile_top = top;
-                for (other, _, _) in &spawned {
-                    let pose = world.object_pose(*other)?;
-                    for p in world.object_hull_points_m(*other)? {
-                        pile_top = pile_top.max((pose * nalgebra::Point3::from(p)).z);
-                    }
-                }
-                let lowest = library[i]
-                    .mesh
-                    .vertices
-                    .iter()
-                    .map(|v| (rotation * Vector3::from(*v)).z)
-                    .fold(f32::INFINITY, f32::min);
-                let lowest = if lowest.is_finite() { lowest } else { 0.0 };
-                let z = pile_top + config.pile_drop_gap_m - lowest;
-                let pose = Pose::from_parts(Translation3::new(x, y, z), rotation);
-                let h = shapes.spawn(world, i, &name, &library[i], &pose)?;
-                world.settle();
-                spawned.push((h, i, name));
-            }
-            for wall in walls {
-                world.remove_fixed_box(wall);
-            }
-            let wider = walls_of(world, config.pile_box_m[1]);
-            world.settle();
-            for wall in wider {
-                world.remove_fixed_box(wall);
-            }
-            world.settle();
-        }
     }
-    spawned
+
+    /// Height of the table top (m).
+    fn top_z_m(&self) -> f32 {
+        self.world.config().table.top_z_m()
+    }
+
+    /// Spawns library object `index` as `name` at `pose` with its collider shape.
+    fn spawn(&mut self, index: usize, name: &str, pose: &Pose) -> Result<ObjectHandle, WorldError> {
+        self.shapes
+            .spawn(self.world, index, name, &self.library[index], pose)
+    }
+
+    /// [`Scenario::Isolated`]: each pick dropped in the isolated region and settled.
+    fn isolated<R: Rng + ?Sized>(
+        &mut self,
+        picks: &[usize],
+        rng: &mut R,
+    ) -> Result<(), WorldError> {
+        for &i in picks {
+            let name = self.name_of(i);
+            let h = crate::shapes::drop_object(
+                self.shapes,
+                self.world,
+                i,
+                &name,
+                &self.library[i],
+                &self.config.isolated_region,
+                rng,
+            )?;
+            self.spawned.push((h, i, name));
+        }
+        Ok(())
+    }
+
+    /// [`Scenario::Packed`]: the first pick at the centre, the others slid in from the sides
+    /// until they touch (see [`TableSetting::slide_in`]), then the scene settled.
+    fn packed<R: Rng + ?Sized>(&mut self, picks: &[usize], rng: &mut R) -> Result<(), WorldError> {
+        let center = self.config.clutter_center_xy_m;
+        let top = self.top_z_m();
+        for (k, &i) in picks.iter().enumerate() {
+            let name = self.name_of(i);
+            let rotation = uniform_yaw(rng);
+            let at = |d: f32| packed_pose(center, top, k, d, rotation);
+            // Spawn at the start, then slide in until touching, and back off one step.
+            let start = if k == 0 {
+                0.0
+            } else {
+                self.config.packed_start_m
+            };
+            let h = self.spawn(i, &name, &at(start))?;
+            let d = if k > 0 {
+                self.slide_in(h, start, &at)?
+            } else {
+                start
+            };
+            self.world.reset_object_pose(h, &at(d))?;
+            self.spawned.push((h, i, name));
+        }
+        self.world.settle();
+        Ok(())
+    }
+
+    /// The distance from the centre, from `start` down in [`ScenarioConfig::packed_step_m`]
+    /// steps, at which object `h` placed by `at` last stood free of every object spawned so far
+    /// (hull intersection tests, nothing moves).
+    fn slide_in(
+        &self,
+        h: ObjectHandle,
+        start: f32,
+        at: &dyn Fn(f32) -> Pose,
+    ) -> Result<f32, WorldError> {
+        let mut d = start;
+        let mut last_free = start;
+        while d > 0.0 {
+            let mut touching = false;
+            for (other, _, _) in &self.spawned {
+                if hulls_intersect(self.world, h, &at(d), *other)? {
+                    touching = true;
+                    break;
+                }
+            }
+            if touching {
+                break;
+            }
+            last_free = d;
+            d -= self.config.packed_step_m;
+        }
+        Ok(last_free)
+    }
+
+    /// [`Scenario::Scattered`]: each pick upright at a uniform yaw, at a drawn position that
+    /// keeps the clearance (see [`TableSetting::scattered_pose`]), then the scene settled.
+    fn scattered<R: Rng + ?Sized>(
+        &mut self,
+        picks: &[usize],
+        rng: &mut R,
+    ) -> Result<(), WorldError> {
+        let [cx, cy] = self.config.clutter_center_xy_m;
+        let top = self.top_z_m();
+        for &i in picks {
+            let name = self.name_of(i);
+            let rotation = uniform_yaw(rng);
+            let at = |x: f32, y: f32| Pose::from_parts(Translation3::new(x, y, top), rotation);
+            let h = self.spawn(i, &name, &at(cx, cy))?;
+            if let Some(pose) = self.scattered_pose(h, &at, rng)? {
+                self.world.reset_object_pose(h, &pose)?;
+            }
+            self.spawned.push((h, i, name));
+        }
+        self.world.settle();
+        Ok(())
+    }
+
+    /// A pose for object `h` (placed at (x, y) by `at`): the first of up to
+    /// [`ScenarioConfig::scattered_tries`] uniform draws that keeps the clearance to every object
+    /// spawned so far, else the draw farthest from its nearest neighbour.
+    fn scattered_pose<R: Rng + ?Sized>(
+        &self,
+        h: ObjectHandle,
+        at: &dyn Fn(f32, f32) -> Pose,
+        rng: &mut R,
+    ) -> Result<Option<Pose>, WorldError> {
+        let [cx, cy] = self.config.clutter_center_xy_m;
+        let r = self.config.scattered_half_extent_m;
+        let mut best: Option<(f32, Pose)> = None;
+        for _ in 0..self.config.scattered_tries {
+            let x = cx + r * rng.random_range(-1.0_f32..=1.0);
+            let y = cy + r * rng.random_range(-1.0_f32..=1.0);
+            let pose = at(x, y);
+            let mut nearest = f32::INFINITY;
+            for (other, _, _) in &self.spawned {
+                nearest = nearest.min(collider_distance(self.world, h, &pose, *other)?);
+            }
+            if best.as_ref().is_none_or(|(d, _)| nearest > *d) {
+                best = Some((nearest, pose));
+            }
+            if nearest >= self.config.scattered_clearance_m {
+                break;
+            }
+        }
+        Ok(best.map(|(_, pose)| pose))
+    }
+
+    /// [`Scenario::Pile`]: the picks dropped one after another into a temporary box, each
+    /// settled; once the pile rests the box is swapped for the wider one, and that is removed
+    /// once the pile rests again.
+    fn pile<R: Rng + ?Sized>(&mut self, picks: &[usize], rng: &mut R) -> Result<(), WorldError> {
+        let walls = self.pile_box(self.config.pile_box_m[0]);
+        for &i in picks {
+            let name = self.name_of(i);
+            let pose = self.pile_drop_pose(i, rng)?;
+            let h = self.spawn(i, &name, &pose)?;
+            self.world.settle();
+            self.spawned.push((h, i, name));
+        }
+        for wall in walls {
+            self.world.remove_fixed_box(wall);
+        }
+        let wider = self.pile_box(self.config.pile_box_m[1]);
+        self.world.settle();
+        for wall in wider {
+            self.world.remove_fixed_box(wall);
+        }
+        self.world.settle();
+        Ok(())
+    }
+
+    /// Four fixed walls [`ScenarioConfig::pile_box_height_m`] high around a square of inner
+    /// side `side_m` at the clutter centre.
+    fn pile_box(&mut self, side_m: f32) -> Vec<ColliderHandle> {
+        let [cx, cy] = self.config.clutter_center_xy_m;
+        let top = self.top_z_m();
+        let h = self.config.pile_box_height_m;
+        let (inner, t) = (0.5 * side_m, 0.01f32);
+        [
+            (
+                [cx + inner + t, cy, top + 0.5 * h],
+                [t, inner + 2.0 * t, 0.5 * h],
+            ),
+            (
+                [cx - inner - t, cy, top + 0.5 * h],
+                [t, inner + 2.0 * t, 0.5 * h],
+            ),
+            (
+                [cx, cy + inner + t, top + 0.5 * h],
+                [inner + 2.0 * t, t, 0.5 * h],
+            ),
+            (
+                [cx, cy - inner - t, top + 0.5 * h],
+                [inner + 2.0 * t, t, 0.5 * h],
+            ),
+        ]
         .into_iter()
-        .map(|(handle, library_index, name)| {
-            Ok(PlacedObject {
-                handle,
-                library_index,
-                category: library[library_index].category.clone(),
-                rest_pose: world.object_pose(handle)?,
-                name,
-            })
+        .map(|(c, half)| {
+            let mu = self.world.config().table.friction;
+            self.world.add_fixed_box(c, half, mu)
         })
         .collect()
+    }
+
+    /// Where library object `index` is released over the pile: a uniform orientation, a
+    /// uniform position within ± [`ScenarioConfig::pile_spread_m`] of the centre, its lowest
+    /// point [`ScenarioConfig::pile_drop_gap_m`] above the highest hull point of the pile so
+    /// far (or the table).
+    fn pile_drop_pose<R: Rng + ?Sized>(
+        &self,
+        index: usize,
+        rng: &mut R,
+    ) -> Result<Pose, WorldError> {
+        let [cx, cy] = self.config.clutter_center_xy_m;
+        let s = self.config.pile_spread_m;
+        let rotation = uniform_rotation(rng);
+        let x = cx + s * rng.random_range(-1.0_f32..=1.0);
+        let y = cy + s * rng.random_range(-1.0_f32..=1.0);
+        // Release above the pile so far.
+        let mut pile_top = self.top_z_m();
+        for (other, _, _) in &self.spawned {
+            let pose = self.world.object_pose(*other)?;
+            for p in self.world.object_hull_points_m(*other)? {
+                pile_top = pile_top.max((pose * nalgebra::Point3::from(p)).z);
+            }
+        }
+        let lowest = self.library[index]
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| (rotation * Vector3::from(*v)).z)
+            .fold(f32::INFINITY, f32::min);
+        let lowest = if lowest.is_finite() { lowest } else { 0.0 };
+        let z = pile_top + self.config.pile_drop_gap_m - lowest;
+        Ok(Pose::from_parts(Translation3::new(x, y, z), rotation))
+    }
+
+    /// The spawned objects with their resting poses, in spawn order.
+    fn placed(self) -> Result<Vec<PlacedObject>, WorldError> {
+        let (world, library) = (&*self.world, self.library);
+        self.spawned
+            .into_iter()
+            .map(|(handle, library_index, name)| {
+                Ok(PlacedObject {
+                    handle,
+                    library_index,
+                    category: library[library_index].category.clone(),
+                    rest_pose: world.object_pose(handle)?,
+                    name,
+                })
+            })
+            .collect()
+    }
+}
+
+/// Where packed object `k` stands at distance `d` from the centre (m) of the arrangement, with
+/// `rotation`, on a table top at `top_z_m`: the first at the centre, the others coming from
+/// +x, −x, +y, −y in turn; a fifth side object and beyond start from the diagonals.
+fn packed_pose(
+    center_xy_m: [f32; 2],
+    top_z_m: f32,
+    k: usize,
+    d: f32,
+    rotation: Rotation3<f32>,
+) -> Pose {
+    let sides = [[1.0f32, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]];
+    let [cx, cy] = center_xy_m;
+    let [dx, dy] = if k == 0 {
+        [0.0, 0.0]
+    } else {
+        sides[(k - 1) % 4]
+    };
+    let ring = if k == 0 { 0.0 } else { ((k - 1) / 4) as f32 };
+    let (dx, dy) = if ring > 0.0 {
+        (dx - dy, dy + dx)
+    } else {
+        (dx, dy)
+    };
+    Pose::from_parts(
+        Translation3::new(cx + dx * d, cy + dy * d, top_z_m),
+        rotation,
+    )
 }
 
 /// Checks that every library object can be simulated (its convex hull can be built, it fits on
