@@ -34,6 +34,9 @@ fi
 step "rust: tests (release build: the contract and end-to-end tests do real work)"
 cargo test --workspace --release
 
+step "rust: the library example (one pick-and-place round from library calls; fails unless it placed an object and wrote a model)"
+cargo run --release -q -p lgdm-sim --example pick_place_round > /dev/null
+
 step "python: build and install the lgdm module (maturin)"
 (
   export VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH"

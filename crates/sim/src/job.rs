@@ -407,9 +407,21 @@ impl PickPlaceJob {
         spec.objects = label;
         spec.config = setup.config;
         spec.max_attempts = setup.attempts;
-        spec.packing = targets.map(PackingSpec::new);
+        if let Some(targets) = targets {
+            // Named as the option they come from; [`RunSpec::validate`] checks them again.
+            let packing = PackingSpec::new(targets);
+            let known = crate::packing::known_categories(&set, &labels);
+            let all = packing.targets.join(",");
+            packing
+                .validate(&known, &spec.config.world)
+                .map_err(|e| setting("targets", all, e))?;
+            spec.packing = Some(packing);
+        }
         if let Some(k) = setup.arrive_after {
-            spec.arrival = Some(Arrival::split(&set, k)?);
+            let arrival = Arrival::split(&set, k)
+                .and_then(|a| a.validate(rounds).map(|()| a))
+                .map_err(|e| setting("arrive-after", k, e))?;
+            spec.arrival = Some(arrival);
         }
         spec.validate(&set, Some(&labels))?;
         check_record(setup.record.as_ref(), setup.out.as_ref())?;

@@ -202,19 +202,19 @@ pub enum SimError {
     #[error(transparent)]
     Attempt(#[from] AttemptError),
     /// The grasp source failed.
-    #[error("grasp source: {0}")]
+    #[error("grasp source")]
     Source(#[from] SourceError),
     /// Recording a round failed.
     #[error(transparent)]
     Record(#[from] RecordError),
     /// Recognition or learning failed.
-    #[error("recognition: {0}")]
+    #[error("recognition")]
     Recognition(#[from] RecognitionError),
     /// A bad packing spec (an unknown target category, a missing basket).
-    #[error("packing: {0}")]
+    #[error("packing")]
     Packing(#[from] PackingError),
     /// A bad arrival plan.
-    #[error("categories arriving over time: {0}")]
+    #[error("categories arriving over time")]
     Arrival(#[from] ArrivalError),
     /// The model to start from cannot be used (its file, its record, its encoder).
     #[error(transparent)]
