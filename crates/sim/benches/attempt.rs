@@ -17,11 +17,11 @@ use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
 use lgdm_sim::attempt::{AttemptConfig, Cell, execute, park, plan_grasp};
+use lgdm_sim::config::SimConfig;
 use lgdm_sim::perception::{ObjectView, Perception};
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
 use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource};
-use lgdm_sim::spec::SimConfig;
 use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
 

@@ -21,7 +21,6 @@
 
 use crate::attempt::FailureReason;
 use crate::recognize::RecognitionRecord;
-use crate::record::{LabelTone, ObjectLabel};
 use crate::results::{AttemptRecord, RoundRecord};
 
 /// A storyboard caption of an attempt: `attempt 2 (try 1, rank 1) mug_01: grasp failed (missed)`.
@@ -152,4 +151,26 @@ pub fn round_summary(r: &RoundRecord) -> String {
         text.push_str(&format!(", left the table: {}", r.left_table.join(", ")));
     }
     text
+}
+
+/// What the robot made of an object, shown above it on `/labels`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectLabel {
+    /// The text (lines separated by `\n`).
+    pub text: String,
+    /// How the recognition went (the colour).
+    pub tone: LabelTone,
+    /// Key–value pairs for the entity's metadata (true labels, guess, confidence, teacher).
+    pub metadata: Vec<(&'static str, String)>,
+}
+
+/// How a recognition went, as a label's colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LabelTone {
+    /// The robot knew the object (green).
+    Right,
+    /// The robot said it did not know (amber): the teacher taught it.
+    Unknown,
+    /// The robot was sure and wrong (red): the teacher corrected it.
+    Wrong,
 }

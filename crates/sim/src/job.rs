@@ -39,6 +39,7 @@ use lgdm_pointcloud::objects::{CATEGORIES, ObjectModel, procedural_library};
 
 use crate::arrival::Arrival;
 use crate::camera::CameraConfig;
+use crate::config::SimConfig;
 use crate::model::StartModel;
 use crate::observe::RunObserver;
 use crate::packing::PackingSpec;
@@ -49,7 +50,7 @@ use crate::run_dir::SimRunDir;
 use crate::runner::{run_pick_place, run_trials};
 use crate::scenario::{Scenario, interleaved_order};
 use crate::source::GraspSource;
-use crate::spec::{RunSpec, SimConfig, SimError};
+use crate::spec::{RunSpec, SimError};
 
 /// Where a job's objects come from.
 #[derive(Debug, Clone, PartialEq)]

@@ -30,8 +30,8 @@
 //! - [`scenario`]: isolated, packed, pile and scattered tables.
 //! - [`shapes`]: objects' colliders — a convex decomposition that keeps openings and handles
 //!   (default), or the mesh's convex hull.
-//! - [`spec`]: what a run is ([`spec::RunSpec`], every constant in [`spec::SimConfig`]),
-//!   validated once; its errors.
+//! - [`config`]: every constant of a run ([`config::SimConfig`]); [`spec`]: what a run is
+//!   ([`spec::RunSpec`]), validated once; its errors.
 //! - [`runner`]: playing the rounds, calling an [`observe::RunObserver`] at each event;
 //!   [`packing`] and [`arrival`] are the policies pick-and-place can add.
 //! - [`results`]: attempt and round records, the summary (rates with Wilson intervals, per
@@ -93,6 +93,7 @@ pub mod arrival;
 pub mod attempt;
 pub mod camera;
 pub mod captions;
+pub mod config;
 pub mod gripper;
 pub mod ik;
 pub mod job;

@@ -27,10 +27,10 @@ pub use lgdm_base::stats::{Rate, wilson_interval};
 
 use crate::arrival::{Arrival, ArrivalEvaluation};
 use crate::attempt::{FailureReason, GraspPlan, Measurements};
+use crate::config::SimConfig;
 use crate::packing::{PackingRecord, PackingSpec, PackingSummary};
 use crate::recognize::{Labels, MemoryPoint, RecognitionConfig, RecognitionRecord};
 use crate::scenario::Scenario;
-use crate::spec::SimConfig;
 use crate::timing::WallTimes;
 
 /// Version of the `results.json` layout.

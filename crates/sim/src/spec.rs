@@ -17,59 +17,30 @@
 use std::path::PathBuf;
 
 use lgdm_base::seed::derive_seed;
-use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::objects::ObjectModel;
 use serde::{Deserialize, Serialize};
 
 use crate::arrival::{Arrival, ArrivalError};
-use crate::attempt::{AttemptConfig, AttemptError};
-use crate::camera::CameraConfig;
+use crate::attempt::AttemptError;
+use crate::config::SimConfig;
 use crate::model::ModelError;
 use crate::observe::ObserverError;
 use crate::packing::{PackingError, PackingSpec};
 use crate::perception::PerceptionError;
 use crate::recognize::{Labels, RecognitionError};
 use crate::record::RecordError;
-use crate::robot::RobotConfig;
-use crate::scenario::{Scenario, ScenarioConfig, check_library};
-use crate::shapes::ShapeConfig;
+use crate::scenario::{Scenario, check_library};
 use crate::source::{AnalyticSource, GraspSource, RandomSource, SourceError};
-use crate::world::{WorldConfig, WorldError};
+use crate::world::WorldError;
 
 /// Seed tag of a round's RNG.
 pub(crate) const TAG_ROUND: u64 = 0x5133_0001;
 /// Seed tag of the random grasp source.
 const TAG_RANDOM_SOURCE: u64 = 0x5133_0002;
 
-/// Every constant of a sim run. Defaults are each part's.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SimConfig {
-    /// The physics world.
-    pub world: WorldConfig,
-    /// The robot (arm and gripper).
-    pub robot: RobotConfig,
-    /// Cameras, crop and segmentation.
-    pub cameras: CameraConfig,
-    /// Motions and judging of one attempt.
-    pub attempt: AttemptConfig,
-    /// How tables are set and rounds end.
-    pub scenario: ScenarioConfig,
-    /// Objects' collider shapes (default: a convex decomposition of each mesh).
-    pub shapes: ShapeConfig,
-}
-
+/// Checks every part of the config (here, with the run's errors, rather than in
+/// [`crate::config`], which [`crate::results`] reads without them).
 impl SimConfig {
-    /// The gripper as grasp sources see it: the robot's stroke and finger width, the dataset's
-    /// finger reach, clearance and friction.
-    pub fn grasp_spec(&self) -> GraspSpec {
-        GraspSpec {
-            max_opening_m: self.robot.gripper.stroke_m,
-            finger_width_m: self.robot.gripper.finger_width_m,
-            ..GraspSpec::default()
-        }
-    }
-
     /// Checks every part.
     pub fn validate(&self) -> Result<(), SimError> {
         self.world.validate()?;

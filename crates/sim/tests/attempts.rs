@@ -109,7 +109,7 @@ fn place_a_can_in(basket: usize) {
     assert_eq!(scene.segments.len(), 1);
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
     assert_eq!(view.object, Some(h));
-    let gripper = lgdm_sim::spec::SimConfig::default().grasp_spec();
+    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,

@@ -20,6 +20,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::camera::ObjectDrawing;
+use lgdm_sim::config::SimConfig;
 use lgdm_sim::job::{
     GraspJob, GraspSetup, ObjectLibrary, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
 };
@@ -30,7 +31,7 @@ use lgdm_sim::results::RunResults;
 use lgdm_sim::run_dir::ROUNDS_DIR;
 use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::GraspSource;
-use lgdm_sim::spec::{SimConfig, SimError, builtin_source};
+use lgdm_sim::spec::{SimError, builtin_source};
 
 use crate::data::Encoder;
 use crate::progress::{ProgressMode, Reporter};

@@ -189,35 +189,12 @@ pub(super) fn scenery_entity(world: &World, scenery: &[ColliderHandle], t_ns: u6
     e
 }
 
-/// What the robot made of an object, shown above it on `/labels`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ObjectLabel {
-    /// The text (lines separated by `\n`).
-    pub text: String,
-    /// How the recognition went (the colour).
-    pub tone: LabelTone,
-    /// Key–value pairs for the entity's metadata (true labels, guess, confidence, teacher).
-    pub metadata: Vec<(&'static str, String)>,
-}
-
-/// How a recognition went, as a label's colour.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LabelTone {
-    /// The robot knew the object (green).
-    Right,
-    /// The robot said it did not know (amber): the teacher taught it.
-    Unknown,
-    /// The robot was sure and wrong (red): the teacher corrected it.
-    Wrong,
-}
-
-impl LabelTone {
-    fn rgba(self) -> [f64; 4] {
-        match self {
-            Self::Right => [0.2, 0.8, 0.3, 1.0],
-            Self::Unknown => [1.0, 0.7, 0.1, 1.0],
-            Self::Wrong => [0.9, 0.2, 0.2, 1.0],
-        }
+/// A label's colour by how the recognition went: green right, amber unknown, red wrong.
+pub(super) fn tone_rgba(tone: LabelTone) -> [f64; 4] {
+    match tone {
+        LabelTone::Right => [0.2, 0.8, 0.3, 1.0],
+        LabelTone::Unknown => [1.0, 0.7, 0.1, 1.0],
+        LabelTone::Wrong => [0.9, 0.2, 0.2, 1.0],
     }
 }
 
@@ -240,7 +217,7 @@ pub(super) fn label_entity(
         billboard: true,
         font_size: 14.0,
         scale_invariant: true,
-        color: Some(color(label.tone.rgba())),
+        color: Some(color(tone_rgba(label.tone))),
         text: label.text.clone(),
     });
     e

@@ -77,7 +77,9 @@ use crate::attempt::Cell;
 use crate::attempt::Execution;
 use crate::camera::{BASKET_RGB, OverviewCamera, SceneFrame, TABLE_RGB};
 use crate::camera::{CameraConfig, render_world};
-use crate::captions::{attempt_caption, recognition_caption, recognition_label, round_summary};
+use crate::captions::{
+    LabelTone, ObjectLabel, attempt_caption, recognition_caption, recognition_label, round_summary,
+};
 use crate::observe::{GraspShown, ObserverError, RecordCamera, RoundInfo, RunObserver};
 use crate::packing::{BasketChoice, basket_name};
 use crate::recognize::RecognitionRecord;
@@ -90,7 +92,7 @@ mod messages;
 mod storyboard;
 
 use messages::*;
-pub use messages::{LabelTone, ObjectLabel};
+
 pub use storyboard::outcome_text;
 use storyboard::*;
 
