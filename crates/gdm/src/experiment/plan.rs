@@ -173,7 +173,8 @@ pub struct Plan {
 /// Builds a trial's plan.
 ///
 /// `train_collections` and `test_collections` come from the manifest's split;
-/// `category_names` gives the step labels.
+/// `category_names` gives the step labels. The RNG draws the held-out instances first, then
+/// the scenario's orders.
 pub fn plan(
     scenario: Scenario,
     rows: Rows<'_>,
@@ -183,7 +184,48 @@ pub fn plan(
     epochs: usize,
     rng: &mut impl Rng,
 ) -> Plan {
-    // Group rows into sequences (BTreeMap: deterministic order), frames in order.
+    let sequences = sequences_in_frame_order(rows);
+    let held_out_instances = draw_held_out_instances(rows, rng);
+    let split = split_sequences(
+        rows,
+        &sequences,
+        &held_out_instances,
+        train_collections,
+        test_collections,
+    );
+    let train = TrainSet {
+        rows,
+        sequences: split.train,
+        category_names,
+    };
+    let categories = train.categories();
+    let mut collections: Vec<u32> = train_collections.to_vec();
+    collections.sort_unstable();
+    collections.dedup();
+    let (steps, scope) = match scenario {
+        Scenario::Batch => (train.batch_steps(collections, epochs, rng), EvalScope::All),
+        Scenario::Incremental => (
+            train.incremental_steps(categories, rng),
+            EvalScope::SeenCategories,
+        ),
+        Scenario::Ni => (train.ni_steps(collections, rng), EvalScope::All),
+        Scenario::Nc => (train.nc_steps(categories, rng), EvalScope::All),
+        Scenario::Nic => (
+            train.nic_steps(categories, collections, rng),
+            EvalScope::All,
+        ),
+    };
+    Plan {
+        steps,
+        scope,
+        test: split.test,
+        new_instance: split.new_instance,
+        held_out_instances,
+    }
+}
+
+/// The rows grouped into sequences (in sequence-id order: deterministic), each in frame order.
+fn sequences_in_frame_order(rows: Rows<'_>) -> Vec<Vec<usize>> {
     let mut by_sequence: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
     for i in 0..rows.len() {
         by_sequence.entry(rows.sequence[i]).or_default().push(i);
@@ -191,9 +233,12 @@ pub fn plan(
     for seq in by_sequence.values_mut() {
         seq.sort_by_key(|&i| rows.frame[i]);
     }
-    let sequences: Vec<Vec<usize>> = by_sequence.into_values().collect();
+    by_sequence.into_values().collect()
+}
 
-    // Held-out instances: one per category with at least two instances.
+/// One held-out instance per category with at least two instances (categories in id order,
+/// drawn uniformly among the category's instance ids).
+fn draw_held_out_instances(rows: Rows<'_>, rng: &mut impl Rng) -> Vec<u32> {
     let mut instances_of: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
     for i in 0..rows.len() {
         instances_of
@@ -208,8 +253,28 @@ pub fn plan(
             held_out_instances.push(list[rng.random_range(0..list.len())]);
         }
     }
-    let held: BTreeSet<u32> = held_out_instances.iter().copied().collect();
+    held_out_instances
+}
 
+/// A trial's sequences by role.
+struct Split<'s> {
+    /// The trained instances' sequences in the training collections.
+    train: Vec<&'s Vec<usize>>,
+    /// The trained instances' sequences in the test collections.
+    test: Vec<Vec<usize>>,
+    /// The held-out instances' sequences in either.
+    new_instance: Vec<Vec<usize>>,
+}
+
+/// Splits `sequences` (in order) by the held-out instances and the collections.
+fn split_sequences<'s>(
+    rows: Rows<'_>,
+    sequences: &'s [Vec<usize>],
+    held_out_instances: &[u32],
+    train_collections: &[u32],
+    test_collections: &[u32],
+) -> Split<'s> {
+    let held: BTreeSet<u32> = held_out_instances.iter().copied().collect();
     let first = |s: &Vec<usize>| s[0];
     let is_held = |s: &Vec<usize>| held.contains(&rows.instance[first(s)]);
     let in_collections = |s: &Vec<usize>, cs: &[u32]| cs.contains(&rows.collection[first(s)]);
@@ -233,145 +298,178 @@ pub fn plan(
         })
         .cloned()
         .collect();
+    Split {
+        train,
+        test,
+        new_instance,
+    }
+}
 
-    let category_of = |s: &Vec<usize>| rows.category[first(s)];
-    let collection_of = |s: &Vec<usize>| rows.collection[first(s)];
-    let cat_name = |c: u32| {
-        category_names
+/// The training sequences of a trial, and the steps each scenario makes of them.
+struct TrainSet<'a> {
+    rows: Rows<'a>,
+    sequences: Vec<&'a Vec<usize>>,
+    category_names: &'a [String],
+}
+
+impl TrainSet<'_> {
+    fn category_of(&self, s: &[usize]) -> u32 {
+        self.rows.category[s[0]]
+    }
+
+    fn collection_of(&self, s: &[usize]) -> u32 {
+        self.rows.collection[s[0]]
+    }
+
+    /// The category's name for step labels (`category <id>` when it has none).
+    fn category_name(&self, c: u32) -> String {
+        self.category_names
             .get(c as usize)
             .cloned()
             .unwrap_or_else(|| format!("category {c}"))
-    };
-    let mut categories: Vec<u32> = train
-        .iter()
-        .map(|s| category_of(s))
-        .collect::<BTreeSet<_>>()
-        .into_iter()
-        .collect();
-    let mut collections: Vec<u32> = train_collections.to_vec();
-    collections.sort_unstable();
-    collections.dedup();
+    }
 
-    // Sequences matching a predicate, shuffled.
-    let pick = |pred: &dyn Fn(&Vec<usize>) -> bool, rng: &mut dyn rand::Rng| {
-        let mut out: Vec<Vec<usize>> = train
+    /// The categories trained on, in id order.
+    fn categories(&self) -> Vec<u32> {
+        self.sequences
+            .iter()
+            .map(|s| self.category_of(s))
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .collect()
+    }
+
+    /// The training sequences matching `pred`, shuffled.
+    fn pick(&self, pred: &dyn Fn(&Vec<usize>) -> bool, rng: &mut dyn rand::Rng) -> Vec<Vec<usize>> {
+        let mut out: Vec<Vec<usize>> = self
+            .sequences
             .iter()
             .filter(|s| pred(s))
             .map(|s| (*s).clone())
             .collect();
         out.shuffle(rng);
         out
-    };
+    }
 
-    let (steps, scope) = match scenario {
-        Scenario::Batch => {
-            collections.shuffle(rng);
-            let mut all = Vec::new();
-            for &c in &collections {
-                all.extend(pick(&|s| collection_of(s) == c, rng));
-            }
-            let steps = (0..epochs.max(1))
-                .map(|e| Step {
-                    label: format!("epoch {}", e + 1),
-                    sequences: all.clone(),
-                })
-                .collect();
-            (steps, EvalScope::All)
+    /// Batch: `epochs` steps, each over every sequence (collections in a shuffled order,
+    /// sequences shuffled within a collection; the same order every epoch).
+    fn batch_steps(
+        &self,
+        mut collections: Vec<u32>,
+        epochs: usize,
+        rng: &mut impl Rng,
+    ) -> Vec<Step> {
+        collections.shuffle(rng);
+        let mut all = Vec::new();
+        for &c in &collections {
+            all.extend(self.pick(&|s| self.collection_of(s) == c, rng));
         }
-        Scenario::Incremental => {
-            categories.shuffle(rng);
-            let steps = categories
-                .iter()
-                .map(|&c| Step {
-                    label: cat_name(c),
-                    sequences: pick(&|s| category_of(s) == c, rng),
-                })
-                .collect();
-            (steps, EvalScope::SeenCategories)
-        }
-        Scenario::Ni => {
-            collections.shuffle(rng);
-            let steps = collections
-                .iter()
-                .map(|&c| Step {
-                    label: format!("collection {c}"),
-                    sequences: pick(&|s| collection_of(s) == c, rng),
-                })
-                .collect();
-            (steps, EvalScope::All)
-        }
-        Scenario::Nc => {
-            categories.shuffle(rng);
-            let mut steps = Vec::new();
-            let mut rest: &[u32] = &categories;
-            let mut size = 4;
-            while !rest.is_empty() {
-                let take = size.min(rest.len());
-                let (now, later) = rest.split_at(take);
-                let names: Vec<String> = now.iter().map(|&c| cat_name(c)).collect();
-                steps.push(Step {
-                    label: names.join(", "),
-                    sequences: pick(&|s| now.contains(&category_of(s)), rng),
-                });
-                rest = later;
-                size = 2;
-            }
-            (steps, EvalScope::All)
-        }
-        Scenario::Nic => {
-            categories.shuffle(rng);
-            collections.shuffle(rng);
-            let first_cats: Vec<u32> = categories.iter().take(4).copied().collect();
-            let first_coll = collections.first().copied();
-            let in_first = |s: &Vec<usize>| {
-                first_cats.contains(&category_of(s)) && Some(collection_of(s)) == first_coll
-            };
-            let mut steps = vec![Step {
-                label: format!(
-                    "categories {} (collection {})",
-                    first_cats
-                        .iter()
-                        .map(|&c| cat_name(c))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    first_coll.unwrap_or(0)
-                ),
-                sequences: pick(&in_first, rng),
-            }];
-            // Each later category enters at a random point in the first half of the stream.
-            let entry: BTreeMap<u32, f64> = categories
-                .iter()
-                .skip(4)
-                .map(|&c| (c, rng.random_range(0.0..0.5)))
-                .collect();
-            let mut rest: Vec<(f64, Vec<usize>)> = train
-                .iter()
-                .filter(|s| !in_first(s))
-                .map(|s| {
-                    let key: f64 = rng.random_range(0.0..1.0);
-                    let key = entry
-                        .get(&category_of(s))
-                        .map_or(key, |&e| e + key * (1.0 - e));
-                    (key, (*s).clone())
-                })
-                .collect();
-            rest.sort_by(|a, b| a.0.total_cmp(&b.0));
-            for (k, pair) in rest.chunks(2).enumerate() {
-                steps.push(Step {
-                    label: format!("mini-batch {}", k + 2),
-                    sequences: pair.iter().map(|(_, s)| s.clone()).collect(),
-                });
-            }
-            (steps, EvalScope::All)
-        }
-    };
+        (0..epochs.max(1))
+            .map(|e| Step {
+                label: format!("epoch {}", e + 1),
+                sequences: all.clone(),
+            })
+            .collect()
+    }
 
-    Plan {
-        steps,
-        scope,
-        test,
-        new_instance,
-        held_out_instances,
+    /// Incremental: one step per category, in a shuffled order.
+    fn incremental_steps(&self, mut categories: Vec<u32>, rng: &mut impl Rng) -> Vec<Step> {
+        categories.shuffle(rng);
+        categories
+            .iter()
+            .map(|&c| Step {
+                label: self.category_name(c),
+                sequences: self.pick(&|s| self.category_of(s) == c, rng),
+            })
+            .collect()
+    }
+
+    /// NI: one step per training collection, in a shuffled order.
+    fn ni_steps(&self, mut collections: Vec<u32>, rng: &mut impl Rng) -> Vec<Step> {
+        collections.shuffle(rng);
+        collections
+            .iter()
+            .map(|&c| Step {
+                label: format!("collection {c}"),
+                sequences: self.pick(&|s| self.collection_of(s) == c, rng),
+            })
+            .collect()
+    }
+
+    /// NC: categories in a shuffled order, 4 in the first step, then 2 at a time.
+    fn nc_steps(&self, mut categories: Vec<u32>, rng: &mut impl Rng) -> Vec<Step> {
+        categories.shuffle(rng);
+        let mut steps = Vec::new();
+        let mut rest: &[u32] = &categories;
+        let mut size = 4;
+        while !rest.is_empty() {
+            let take = size.min(rest.len());
+            let (now, later) = rest.split_at(take);
+            let names: Vec<String> = now.iter().map(|&c| self.category_name(c)).collect();
+            steps.push(Step {
+                label: names.join(", "),
+                sequences: self.pick(&|s| now.contains(&self.category_of(s)), rng),
+            });
+            rest = later;
+            size = 2;
+        }
+        steps
+    }
+
+    /// NIC: the sequences of 4 categories from the first collection (both in shuffled orders),
+    /// then mini-batches of 2 sequences; each later category enters at a random point in the
+    /// first half of the stream.
+    fn nic_steps(
+        &self,
+        mut categories: Vec<u32>,
+        mut collections: Vec<u32>,
+        rng: &mut impl Rng,
+    ) -> Vec<Step> {
+        categories.shuffle(rng);
+        collections.shuffle(rng);
+        let first_cats: Vec<u32> = categories.iter().take(4).copied().collect();
+        let first_coll = collections.first().copied();
+        let in_first = |s: &Vec<usize>| {
+            first_cats.contains(&self.category_of(s)) && Some(self.collection_of(s)) == first_coll
+        };
+        let mut steps = vec![Step {
+            label: format!(
+                "categories {} (collection {})",
+                first_cats
+                    .iter()
+                    .map(|&c| self.category_name(c))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                first_coll.unwrap_or(0)
+            ),
+            sequences: self.pick(&in_first, rng),
+        }];
+        // Each later category enters at a random point in the first half of the stream.
+        let entry: BTreeMap<u32, f64> = categories
+            .iter()
+            .skip(4)
+            .map(|&c| (c, rng.random_range(0.0..0.5)))
+            .collect();
+        let mut rest: Vec<(f64, Vec<usize>)> = self
+            .sequences
+            .iter()
+            .filter(|s| !in_first(s))
+            .map(|s| {
+                let key: f64 = rng.random_range(0.0..1.0);
+                let key = entry
+                    .get(&self.category_of(s))
+                    .map_or(key, |&e| e + key * (1.0 - e));
+                (key, (*s).clone())
+            })
+            .collect();
+        rest.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (k, pair) in rest.chunks(2).enumerate() {
+            steps.push(Step {
+                label: format!("mini-batch {}", k + 2),
+                sequences: pair.iter().map(|(_, s)| s.clone()).collect(),
+            });
+        }
+        steps
     }
 }
 
