@@ -6,12 +6,13 @@
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use std::collections::BTreeSet;
 use std::time::Instant;
 
 use super::plan::{self, EvalScope, Plan, Scenario};
 use super::records::{Figures, StepRecord, TrialRecord};
 use super::{ExperimentError, StepProgress, Table};
-use crate::{Gdm, GdmConfig, PredictOptions, Scores};
+use crate::{Gdm, GdmConfig, PredictOptions, Prediction, Sample, Scores, TrainStats};
 
 /// Everything one trial needs besides the data.
 #[derive(Clone, Debug)]
@@ -140,94 +141,12 @@ pub(crate) fn run_trial(
     config.seed = s.seed;
     let mut gdm =
         Gdm::new(config, data.dim).map_err(ExperimentError::gdm("creating the dual memory"))?;
-    let opts = PredictOptions::default();
     let started = Instant::now();
     let mut steps = Vec::with_capacity(plan.steps.len());
-    let mut seen_categories = std::collections::BTreeSet::new();
-    let mut seen_train: Vec<Vec<usize>> = Vec::new();
+    let mut seen = Seen::default();
     let n_steps = plan.steps.len();
     for (k, step) in plan.steps.iter().enumerate() {
-        let step_started = Instant::now();
-        let samples = data.samples(&step.sequences);
-        let mut train_stats = None;
-        for _ in 0..if s.scenario == Scenario::Batch {
-            1
-        } else {
-            s.epochs.max(1)
-        } {
-            train_stats = Some(
-                gdm.train(&samples)
-                    .map_err(ExperimentError::gdm(format!("training on {}", step.label)))?,
-            );
-        }
-        if s.replay {
-            gdm.replay()
-                .map_err(ExperimentError::gdm("intrinsic replay"))?;
-        }
-        gdm.end_episode();
-        for seq in &step.sequences {
-            seen_categories.insert(data.category[seq[0]]);
-        }
-        if s.scenario != Scenario::Batch {
-            seen_train.extend(step.sequences.iter().cloned());
-        }
-        let last = k + 1 == n_steps;
-        let evaluate = last || (k + 1) % s.eval_every.max(1) == 0;
-        let scoped = |seqs: &[Vec<usize>]| -> Vec<Vec<usize>> {
-            match plan.scope {
-                EvalScope::All => seqs.to_vec(),
-                EvalScope::SeenCategories => seqs
-                    .iter()
-                    .filter(|q| seen_categories.contains(&data.category[q[0]]))
-                    .cloned()
-                    .collect(),
-            }
-        };
-        let (train, test) = if evaluate {
-            let train_seqs = if s.scenario == Scenario::Batch {
-                &step.sequences
-            } else {
-                &seen_train
-            };
-            let train_seqs = subsample(train_seqs, s.eval_samples, s.seed ^ ((k as u64) << 20));
-            let train = gdm
-                .evaluate(&data.samples(&train_seqs), opts)
-                .map_err(ExperimentError::gdm("evaluating on training data"))?;
-            let test_seqs = if last {
-                scoped(&plan.test)
-            } else {
-                subsample(
-                    &scoped(&plan.test),
-                    s.eval_samples,
-                    s.seed ^ ((k as u64) << 21),
-                )
-            };
-            let test_samples = data.samples(&test_seqs);
-            let test = if test_samples.is_empty() {
-                None
-            } else {
-                Some(
-                    gdm.evaluate(&test_samples, opts)
-                        .map_err(ExperimentError::gdm("evaluating on test data"))?,
-                )
-            };
-            (Some(train), test)
-        } else {
-            (None, None)
-        };
-        let ts = train_stats.expect("at least one epoch");
-        let record = StepRecord {
-            step: k + 1,
-            label: step.label.clone(),
-            train_samples: ts.samples,
-            episodic_nodes: gdm.episodic().len(),
-            semantic_nodes: gdm.semantic().len(),
-            quantization_error_em: ts.quantization_error_em,
-            quantization_error_sm: ts.quantization_error_sm,
-            train: train.as_ref().map(figures),
-            test: test.as_ref().map(figures),
-            seconds: step_started.elapsed().as_secs_f64(),
-        };
+        let record = run_step(&mut gdm, data, s, &plan, k, &mut seen)?;
         progress(StepProgress {
             trial,
             step: k + 1,
@@ -239,14 +158,182 @@ pub(crate) fn run_trial(
         steps.push(record);
     }
     let train_seconds = started.elapsed().as_secs_f64();
+    let last = final_figures(&gdm, data, &plan)?;
+    let record = TrialRecord {
+        trial,
+        seed: s.seed,
+        held_out_instances: plan.held_out_instances.clone(),
+        step_labels: plan.steps.iter().map(|st| st.label.clone()).collect(),
+        steps,
+        test: last.test,
+        test_no_context: last.test_no_context,
+        new_instance: last.new_instance,
+        per_category_test_accuracy: last.per_category_test_accuracy,
+        episodic_nodes: gdm.episodic().len(),
+        semantic_nodes: gdm.semantic().len(),
+        model_size_bytes: gdm.size_bytes(),
+        inference_ms_per_sample: last.inference_ms_per_sample,
+        train_seconds,
+    };
+    Ok((gdm, record))
+}
 
-    // Final figures: test (with and without temporal context), new instances, per category.
+/// What a trial has learned so far.
+#[derive(Default)]
+struct Seen {
+    /// Categories of every step's sequences.
+    categories: BTreeSet<u32>,
+    /// Every step's sequences, in order (not kept in batch learning, whose steps are epochs).
+    train: Vec<Vec<usize>>,
+}
+
+/// Step `k` of `plan`: learn it, then evaluate when due (every `eval_every`-th step and the
+/// last); the step's record.
+fn run_step(
+    gdm: &mut Gdm,
+    data: &Table<'_>,
+    s: &TrialSettings,
+    plan: &Plan,
+    k: usize,
+    seen: &mut Seen,
+) -> Result<StepRecord, ExperimentError> {
+    let step = &plan.steps[k];
+    let step_started = Instant::now();
+    let ts = learn_step(gdm, data, s, step)?;
+    for seq in &step.sequences {
+        seen.categories.insert(data.category[seq[0]]);
+    }
+    if s.scenario != Scenario::Batch {
+        seen.train.extend(step.sequences.iter().cloned());
+    }
+    let last = k + 1 == plan.steps.len();
+    let evaluate = last || (k + 1).is_multiple_of(s.eval_every.max(1));
+    let (train, test) = if evaluate {
+        let (train, test) = evaluate_step(gdm, data, s, plan, k, seen)?;
+        (Some(train), test)
+    } else {
+        (None, None)
+    };
+    Ok(StepRecord {
+        step: k + 1,
+        label: step.label.clone(),
+        train_samples: ts.samples,
+        episodic_nodes: gdm.episodic().len(),
+        semantic_nodes: gdm.semantic().len(),
+        quantization_error_em: ts.quantization_error_em,
+        quantization_error_sm: ts.quantization_error_sm,
+        train: train.as_ref().map(figures),
+        test: test.as_ref().map(figures),
+        seconds: step_started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Trains on the step's sequences (once in batch learning, whose steps are the epochs, else
+/// `epochs` times), replays if asked, ends the episode; the last epoch's statistics.
+fn learn_step(
+    gdm: &mut Gdm,
+    data: &Table<'_>,
+    s: &TrialSettings,
+    step: &plan::Step,
+) -> Result<TrainStats, ExperimentError> {
+    let samples = data.samples(&step.sequences);
+    let epochs = if s.scenario == Scenario::Batch {
+        1
+    } else {
+        s.epochs.max(1)
+    };
+    let mut train_stats = None;
+    for _ in 0..epochs {
+        train_stats = Some(
+            gdm.train(&samples)
+                .map_err(ExperimentError::gdm(format!("training on {}", step.label)))?,
+        );
+    }
+    if s.replay {
+        gdm.replay()
+            .map_err(ExperimentError::gdm("intrinsic replay"))?;
+    }
+    gdm.end_episode();
+    Ok(train_stats.expect("at least one epoch"))
+}
+
+/// Scores after step `k`: on the training data (the step's sequences in batch learning, else
+/// everything seen) and on the test set (scoped as the plan says; `None` when empty), each
+/// subsampled to `eval_samples` except the last step's test set.
+fn evaluate_step(
+    gdm: &Gdm,
+    data: &Table<'_>,
+    s: &TrialSettings,
+    plan: &Plan,
+    k: usize,
+    seen: &Seen,
+) -> Result<(Scores, Option<Scores>), ExperimentError> {
+    let opts = PredictOptions::default();
+    let step = &plan.steps[k];
+    let last = k + 1 == plan.steps.len();
+    let scoped = |seqs: &[Vec<usize>]| -> Vec<Vec<usize>> {
+        match plan.scope {
+            EvalScope::All => seqs.to_vec(),
+            EvalScope::SeenCategories => seqs
+                .iter()
+                .filter(|q| seen.categories.contains(&data.category[q[0]]))
+                .cloned()
+                .collect(),
+        }
+    };
+    let train_seqs = if s.scenario == Scenario::Batch {
+        &step.sequences
+    } else {
+        &seen.train
+    };
+    let train_seqs = subsample(train_seqs, s.eval_samples, s.seed ^ ((k as u64) << 20));
+    let train = gdm
+        .evaluate(&data.samples(&train_seqs), opts)
+        .map_err(ExperimentError::gdm("evaluating on training data"))?;
+    let test_seqs = if last {
+        scoped(&plan.test)
+    } else {
+        subsample(
+            &scoped(&plan.test),
+            s.eval_samples,
+            s.seed ^ ((k as u64) << 21),
+        )
+    };
+    let test_samples = data.samples(&test_seqs);
+    let test = if test_samples.is_empty() {
+        None
+    } else {
+        Some(
+            gdm.evaluate(&test_samples, opts)
+                .map_err(ExperimentError::gdm("evaluating on test data"))?,
+        )
+    };
+    Ok((train, test))
+}
+
+/// The figures of a trained trial, on every sample.
+struct FinalFigures {
+    test: Figures,
+    test_no_context: Figures,
+    new_instance: Option<Figures>,
+    per_category_test_accuracy: Vec<Option<f64>>,
+    inference_ms_per_sample: f64,
+}
+
+/// Final figures: test (with and without temporal context), new instances, per category, and
+/// the inference time per test sample.
+fn final_figures(
+    gdm: &Gdm,
+    data: &Table<'_>,
+    plan: &Plan,
+) -> Result<FinalFigures, ExperimentError> {
+    let opts = PredictOptions::default();
     let test_samples = data.samples(&plan.test);
     let t0 = Instant::now();
     let predictions = gdm
         .predict(&test_samples, opts)
         .map_err(ExperimentError::gdm("predicting the test set"))?;
-    let inference_ms = if test_samples.is_empty() {
+    let inference_ms_per_sample = if test_samples.is_empty() {
         0.0
     } else {
         t0.elapsed().as_secs_f64() * 1e3 / test_samples.len() as f64
@@ -265,18 +352,34 @@ pub(crate) fn run_trial(
             ExperimentError::gdm("evaluating the held-out instances"),
         )?))
     };
-    let n_cat = data.category_names.len();
-    let mut hits = vec![0usize; n_cat];
-    let mut totals = vec![0usize; n_cat];
-    for (sample, p) in test_samples.iter().zip(&predictions) {
+    let per_category_test_accuracy =
+        per_category_accuracy(&test_samples, &predictions, data.category_names.len());
+    Ok(FinalFigures {
+        test,
+        test_no_context,
+        new_instance,
+        per_category_test_accuracy,
+        inference_ms_per_sample,
+    })
+}
+
+/// Category accuracy per category id below `n_categories` (`None` for a category without a
+/// sample); an unlabelled sample counts as category 0.
+fn per_category_accuracy(
+    samples: &[Sample<'_>],
+    predictions: &[Prediction],
+    n_categories: usize,
+) -> Vec<Option<f64>> {
+    let mut hits = vec![0usize; n_categories];
+    let mut totals = vec![0usize; n_categories];
+    for (sample, p) in samples.iter().zip(predictions) {
         let c = sample.category.unwrap_or(0) as usize;
-        if c < n_cat {
+        if c < n_categories {
             totals[c] += 1;
             hits[c] += usize::from(p.category == sample.category);
         }
     }
-    let per_category_test_accuracy = hits
-        .iter()
+    hits.iter()
         .zip(&totals)
         .map(|(&h, &t)| {
             if t == 0 {
@@ -285,24 +388,7 @@ pub(crate) fn run_trial(
                 Some(h as f64 / t as f64)
             }
         })
-        .collect();
-    let record = TrialRecord {
-        trial,
-        seed: s.seed,
-        held_out_instances: plan.held_out_instances.clone(),
-        step_labels: plan.steps.iter().map(|st| st.label.clone()).collect(),
-        steps,
-        test,
-        test_no_context,
-        new_instance,
-        per_category_test_accuracy,
-        episodic_nodes: gdm.episodic().len(),
-        semantic_nodes: gdm.semantic().len(),
-        model_size_bytes: gdm.size_bytes(),
-        inference_ms_per_sample: inference_ms,
-        train_seconds,
-    };
-    Ok((gdm, record))
+        .collect()
 }
 
 #[cfg(test)]
