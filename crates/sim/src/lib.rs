@@ -28,7 +28,7 @@
 //!   judge) with strict and contact-only success and a failure reason; [`timing`] adds up
 //!   where its wall time goes.
 //! - [`scenario`]: isolated, packed, pile and scattered tables.
-//! - [`shapes`]: objects' colliders — a convex decomposition that keeps openings and handles
+//! - [`shapes`] (on [`hull`]): objects' colliders — a convex decomposition that keeps openings and handles
 //!   (default), or the mesh's convex hull.
 //! - [`config`]: every constant of a run ([`config::SimConfig`]); [`spec`]: what a run is
 //!   ([`spec::RunSpec`]), validated once; its errors.
@@ -95,6 +95,7 @@ pub mod camera;
 pub mod captions;
 pub mod config;
 pub mod gripper;
+pub mod hull;
 pub mod ik;
 pub mod job;
 pub mod model;

@@ -24,7 +24,7 @@
 //! Here: the configuration ([`WorldConfig`] and its parts, validated by [`World::new`]) and the
 //! errors, the [`World`] (scenery, objects, stepping, settling, drops in a [`DropRegion`]), and
 //! the pose conversions at the boundary to rapier's math types. How collider shapes are built —
-//! decompositions and the thinning of big hull faces — is [`crate::shapes`].
+//! decompositions in [`crate::shapes`], the thinning of big hull faces in [`crate::hull`].
 //!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
@@ -51,7 +51,7 @@ use rapier3d::prelude::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::shapes::thinned_hull;
+use crate::hull::thinned_hull;
 
 /// rapier's glam-based math types, used only at this boundary.
 pub(crate) type RVec = rapier3d::math::Vector;
