@@ -31,7 +31,7 @@
 //! println!("{}", results.summary.placement_success_rate.describe());
 //! ```
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use lgdm_base::Progress;
 use lgdm_pointcloud::import::{ImportReport, MeshUnits, load_mesh_library};
@@ -82,6 +82,10 @@ impl Default for ObjectSource {
     }
 }
 
+/// The most procedural instances per category a job may build (10 categories: 1,000 objects,
+/// ~50 MB of meshes).
+pub const MAX_INSTANCES: usize = 100;
+
 /// A job's objects.
 #[derive(Debug, Clone)]
 pub struct ObjectLibrary {
@@ -103,6 +107,13 @@ impl ObjectSource {
                         "instances",
                         0,
                         "at least one instance per category is needed",
+                    ));
+                }
+                if *instances > MAX_INSTANCES {
+                    return Err(setting(
+                        "instances",
+                        instances,
+                        format!("at most {MAX_INSTANCES} instances per category"),
                     ));
                 }
                 let objects = procedural_library(&CATEGORIES, *instances, *seed)
@@ -215,6 +226,9 @@ impl GraspJob {
         spec.config = setup.config;
         spec.validate(&library.objects, None)?;
         check_record(setup.record.as_ref(), setup.out.as_ref())?;
+        if let ObjectSource::Meshes { dir, .. } = &objects {
+            check_inputs(setup.out.as_ref(), &[("meshes", dir)])?;
+        }
         Ok(GraspJob {
             spec,
             library,
@@ -387,14 +401,19 @@ impl PickPlaceJob {
             .map(|i| library.objects[i].clone())
             .collect();
         if set.len() < setup.set_size {
-            notes.push(format!(
-                "note: --objects {}: the library holds {} objects; using them all",
+            return Err(setting(
+                "objects",
                 setup.set_size,
-                set.len()
+                format!(
+                    "the object set is taken from {} ({} objects); ask for at most that many",
+                    library.label,
+                    set.len()
+                ),
             ));
         }
         let default_rounds = if packing { 50 } else { 10 };
-        let rounds = setup.rounds.or(setup.attempts).unwrap_or(default_rounds);
+        let by_attempts = setup.attempts.map(|a| a.min(crate::spec::MAX_ROUNDS));
+        let rounds = setup.rounds.or(by_attempts).unwrap_or(default_rounds);
         let label = format!(
             "{}, {} objects: {}",
             library.label,
@@ -415,7 +434,30 @@ impl PickPlaceJob {
             let all = packing.targets.join(",");
             packing
                 .validate(&known, &spec.config.world)
-                .map_err(|e| setting("targets", all, e))?;
+                .map_err(|e| setting("targets", &all, e))?;
+            // A target no object of the set belongs to would never be met: its packing rate
+            // would be about the other objects only.
+            if let Some(absent) = packing
+                .targets
+                .iter()
+                .find(|t| !set.iter().any(|o| &o.category == *t))
+            {
+                let mut in_set: Vec<&str> = Vec::new();
+                for o in &set {
+                    if !in_set.contains(&o.category.as_str()) {
+                        in_set.push(&o.category);
+                    }
+                }
+                return Err(setting(
+                    "targets",
+                    &all,
+                    format!(
+                        "no object of the set is a {absent} (the set's categories: {}); \
+                         give --objects so the set holds one, or other targets",
+                        in_set.join(", ")
+                    ),
+                ));
+            }
             spec.packing = Some(packing);
         }
         if let Some(k) = setup.arrive_after {
@@ -426,6 +468,14 @@ impl PickPlaceJob {
         }
         spec.validate(&set, Some(&labels))?;
         check_record(setup.record.as_ref(), setup.out.as_ref())?;
+        let mut inputs: Vec<(&'static str, &Path)> = Vec::new();
+        if let Some(model) = &setup.model {
+            inputs.push(("model", model));
+        }
+        if let ObjectSource::Meshes { dir, .. } = &setup.objects {
+            inputs.push(("meshes", dir));
+        }
+        check_inputs(setup.out.as_ref(), &inputs)?;
         Ok(PickPlaceJob {
             spec,
             library,
@@ -545,6 +595,56 @@ fn parse_targets(targets: &[String]) -> Result<Vec<String>, SimError> {
 /// The run directory of `out`, claimed (none without one).
 fn open(out: Option<&Output>) -> Result<Option<SimRunDir>, SimError> {
     out.map(|o| SimRunDir::create(&o.dir, o.force)).transpose()
+}
+
+/// A run never writes over its own inputs: `out` must not be, or hold, any of `inputs` (a
+/// `--model` inside the run directory would be replaced by the run's own model, and with
+/// `force` the results beside it removed first).
+fn check_inputs(out: Option<&Output>, inputs: &[(&'static str, &Path)]) -> Result<(), SimError> {
+    let Some(out) = out else {
+        return Ok(());
+    };
+    let resolve = |p: &Path| -> PathBuf {
+        // The deepest existing ancestor, resolved (symlinks, `..`), with the rest appended.
+        let mut existing = p.to_path_buf();
+        let mut rest = Vec::new();
+        while !existing.exists() {
+            match (
+                existing.file_name().map(|n| n.to_os_string()),
+                existing.parent(),
+            ) {
+                (Some(name), Some(parent)) => {
+                    rest.push(name);
+                    existing = parent.to_path_buf();
+                }
+                _ => break,
+            }
+        }
+        let base = if existing.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            existing
+        };
+        let mut full = std::fs::canonicalize(&base).unwrap_or(base);
+        full.extend(rest.iter().rev());
+        full
+    };
+    let dir = resolve(&out.dir);
+    for (name, input) in inputs {
+        let input_path = resolve(input);
+        if input_path.starts_with(&dir) {
+            return Err(setting(
+                name,
+                input.display(),
+                format!(
+                    "it is in the run directory {}, which the run writes (and with --force \
+                     clears first): choose another --out",
+                    out.dir.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Recording needs a run directory to write the rounds to.

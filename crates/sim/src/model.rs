@@ -111,6 +111,25 @@ pub enum ModelError {
         /// The run's.
         wanted: String,
     },
+    /// Its record names fewer categories or instances than the model has learnt.
+    #[error(
+        "model {}: its record {} names {named} {what}, but the model has learnt {learnt}: the \
+         record is not this model's (a pick-place run writes both; lgdm train's metrics.json \
+         names them)",
+        path.display(), record.display()
+    )]
+    Names {
+        /// The checkpoint.
+        path: PathBuf,
+        /// The record.
+        record: PathBuf,
+        /// `categories` or `instances`.
+        what: &'static str,
+        /// Names in the record.
+        named: usize,
+        /// Ids the model uses (the largest + 1).
+        learnt: usize,
+    },
     /// Its features have another dimension than the encoder's.
     #[error("model {}", path.display())]
     Dimension {
@@ -151,6 +170,21 @@ impl StartModel {
                         wanted: encoder.to_string(),
                     });
                 }
+                let (categories, instances) = label_ids_used(&gdm);
+                for (what, named, learnt) in [
+                    ("categories", record.categories.len(), categories),
+                    ("instances", record.instances.len(), instances),
+                ] {
+                    if named < learnt {
+                        return Err(ModelError::Names {
+                            path: path.to_path_buf(),
+                            record: record_path,
+                            what,
+                            named,
+                            learnt,
+                        });
+                    }
+                }
                 Some(Labels {
                     categories: record.categories,
                     instances: record.instances,
@@ -174,4 +208,22 @@ impl StartModel {
             labels,
         })
     }
+}
+
+/// How many category and instance ids `gdm` uses: the largest label of any node + 1 (0 for an
+/// unlabelled model).
+fn label_ids_used(gdm: &Gdm) -> (usize, usize) {
+    let em = gdm.episodic();
+    let sm = gdm.semantic();
+    let next = |id: Option<u32>| id.map_or(0, |i| i as usize + 1);
+    let categories = (0..em.len())
+        .map(|j| next(em.category_of(j)))
+        .chain((0..sm.len()).map(|j| next(sm.category_of(j))))
+        .max()
+        .unwrap_or(0);
+    let instances = (0..em.len())
+        .map(|j| next(em.instance_of(j)))
+        .max()
+        .unwrap_or(0);
+    (categories, instances)
 }

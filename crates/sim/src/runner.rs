@@ -741,11 +741,17 @@ fn play(
     };
     // Decompose every object the rounds will show ahead, in parallel (the picks are the
     // rounds' first draws; the same seeds draw them again in each round).
-    let used: Vec<usize> = (0..spec.rounds)
+    // Every round has at least one attempt, so an attempt budget bounds the rounds played: the
+    // work and memory set aside follow what the run can do, not `rounds` (rounds past the
+    // budget are never drawn; a round beyond the prepared ones would decompose on first use).
+    let playable = spec
+        .max_attempts
+        .map_or(spec.rounds, |a| a.min(spec.rounds));
+    let used: Vec<usize> = (0..playable)
         .flat_map(|round| round_picks(spec, library, round, &mut round_rng(spec, round)))
         .collect();
     runner.shapes.prepare(library, &used);
-    let mut rounds = Vec::with_capacity(spec.rounds);
+    let mut rounds = Vec::with_capacity(playable);
     let (mut setup_s, mut sim_s) = (0.0, 0.0);
     for r in 0..spec.rounds {
         if runner.budget_spent() {

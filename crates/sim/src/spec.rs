@@ -54,18 +54,25 @@ impl SimConfig {
     }
 }
 
+/// The most rounds a run may ask for (100,000 isolated rounds are ~10 h of this machine).
+pub const MAX_ROUNDS: usize = 100_000;
+
+/// The largest attempt budget a run may ask for (each attempt's record is ~2 KB in
+/// `results.json`).
+pub const MAX_ATTEMPTS: usize = 100_000;
+
 /// What to run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunSpec {
     /// The scenario.
     pub scenario: Scenario,
-    /// Rounds to play (at least 1).
+    /// Rounds to play (1 to [`MAX_ROUNDS`]).
     pub rounds: usize,
     /// Base seed.
     pub seed: u64,
     /// Where the objects came from (`procedural` or the meshes directory), for the record.
     pub objects: String,
-    /// Stop after this many attempts in all (none: play every round).
+    /// Stop after this many attempts in all (1 to [`MAX_ATTEMPTS`]; none: play every round).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_attempts: Option<usize>,
     /// Packing: each object goes to the basket of the category it is recognised as (none: every
@@ -109,6 +116,20 @@ impl RunSpec {
                 name: "rounds",
                 value: "0".into(),
                 reason: "at least one round is needed".into(),
+            });
+        }
+        if self.rounds > MAX_ROUNDS {
+            return Err(SimError::Setting {
+                name: "rounds",
+                value: self.rounds.to_string(),
+                reason: format!("at most {MAX_ROUNDS} rounds a run"),
+            });
+        }
+        if self.max_attempts.is_some_and(|a| a > MAX_ATTEMPTS) {
+            return Err(SimError::Setting {
+                name: "attempts",
+                value: self.max_attempts.unwrap_or_default().to_string(),
+                reason: format!("at most {MAX_ATTEMPTS} attempts a run"),
             });
         }
         if self.max_attempts == Some(0) {
