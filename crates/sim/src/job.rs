@@ -8,7 +8,8 @@
 //!
 //! Each is prepared from a setup ([`GraspSetup`], [`PickPlaceSetup`]): the objects are built
 //! or imported, the model to start from is read and checked against the encoder, and every
-//! setting is validated — all before a grasp source or an encoder is loaded (the autoencoder's
+//! setting is validated, and every object the rounds will show has its collider built — all
+//! before a grasp source or an encoder is loaded (the autoencoder's
 //! start torch) and before the run directory is touched. [`GraspJob::run`] and
 //! [`PickPlaceJob::run`] then play the run and, given an [`Output`], write the run directory
 //! the binary writes: `results.json`, `summary.txt`, with recognition `model.lgdm` +
@@ -47,8 +48,9 @@ use crate::recognize::{Labels, RecognitionConfig, RecognitionError, Recognizer, 
 use crate::record::{RecordConfig, RoundRecorder};
 use crate::results::RunResults;
 use crate::run_dir::SimRunDir;
-use crate::runner::{run_pick_place, run_trials};
+use crate::runner::{play, prepare_shapes};
 use crate::scenario::{Scenario, interleaved_order};
+use crate::shapes::LibraryShapes;
 use crate::source::GraspSource;
 use crate::spec::{RunSpec, SimError};
 
@@ -206,6 +208,7 @@ impl Default for GraspSetup {
 pub struct GraspJob {
     spec: RunSpec,
     library: ObjectLibrary,
+    shapes: LibraryShapes,
     record: Option<RecordConfig>,
     out: Option<Output>,
 }
@@ -224,14 +227,15 @@ impl GraspJob {
         let mut spec = RunSpec::new(setup.scenario, setup.rounds, setup.seed);
         spec.objects = library.label.clone();
         spec.config = setup.config;
-        spec.validate(&library.objects, None)?;
         check_record(setup.record.as_ref(), setup.out.as_ref())?;
         if let ObjectSource::Meshes { dir, .. } = &objects {
             check_inputs(setup.out.as_ref(), &[("meshes", dir)])?;
         }
+        let shapes = prepare_shapes(&spec, &library.objects, None)?;
         Ok(GraspJob {
             spec,
             library,
+            shapes,
             record: setup.record,
             out: setup.out,
         })
@@ -257,7 +261,16 @@ impl GraspJob {
         let spec = &self.spec;
         let cameras = &spec.config.cameras;
         let results = observed(self.record.as_ref(), dir.as_mut(), cameras, |observer| {
-            run_trials(spec, &self.library.objects, source, observer, on_progress)
+            let shapes = Some(self.shapes.clone());
+            play(
+                spec,
+                &self.library.objects,
+                shapes,
+                source,
+                None,
+                observer,
+                on_progress,
+            )
         })?;
         if let Some(dir) = &dir {
             dir.write_results(&results)?;
@@ -335,6 +348,7 @@ impl Default for PickPlaceSetup {
 pub struct PickPlaceJob {
     spec: RunSpec,
     library: ObjectLibrary,
+    shapes: LibraryShapes,
     set: Vec<ObjectModel>,
     start: Option<StartModel>,
     labels: Labels,
@@ -466,7 +480,6 @@ impl PickPlaceJob {
                 .map_err(|e| setting("arrive-after", k, e))?;
             spec.arrival = Some(arrival);
         }
-        spec.validate(&set, Some(&labels))?;
         check_record(setup.record.as_ref(), setup.out.as_ref())?;
         let mut inputs: Vec<(&'static str, &Path)> = Vec::new();
         if let Some(model) = &setup.model {
@@ -476,9 +489,11 @@ impl PickPlaceJob {
             inputs.push(("meshes", dir));
         }
         check_inputs(setup.out.as_ref(), &inputs)?;
+        let shapes = prepare_shapes(&spec, &set, Some(&labels))?;
         Ok(PickPlaceJob {
             spec,
             library,
+            shapes,
             set,
             start,
             labels,
@@ -556,7 +571,16 @@ impl PickPlaceJob {
         let (spec, set) = (&self.spec, &self.set);
         let cameras = &spec.config.cameras;
         let results = observed(self.record.as_ref(), dir.as_mut(), cameras, |observer| {
-            run_pick_place(spec, set, source, &mut recognizer, observer, on_progress)
+            let shapes = Some(self.shapes);
+            play(
+                spec,
+                set,
+                shapes,
+                source,
+                Some(&mut recognizer),
+                observer,
+                on_progress,
+            )
         })?;
         if let Some(dir) = &dir {
             dir.write_results(&results)?;

@@ -72,7 +72,7 @@ pub fn run_trials(
     observer: &mut dyn RunObserver,
     on_progress: impl FnMut(Progress),
 ) -> Result<RunResults, SimError> {
-    play(spec, library, source, None, observer, on_progress)
+    play(spec, library, None, source, None, observer, on_progress)
 }
 
 /// Pick-and-place with lifelong recognition: rounds as [`run_trials`] plays them, where before
@@ -90,11 +90,39 @@ pub fn run_pick_place(
     play(
         spec,
         library,
+        None,
         source,
         Some(recognizer),
         observer,
         on_progress,
     )
+}
+
+/// The colliders of every object the rounds of `spec` will show (as far as its attempt budget
+/// lets them play): decomposed ahead, in parallel, and each built once in a scratch world, so a
+/// mesh that cannot be simulated fails before the first round. Validates `spec` first.
+pub fn prepare_shapes(
+    spec: &RunSpec,
+    library: &[ObjectModel],
+    labels: Option<&crate::recognize::Labels>,
+) -> Result<LibraryShapes, SimError> {
+    spec.validate(library, labels)?;
+    let mut shapes = LibraryShapes::new(spec.config.shapes.clone(), library.len());
+    // Every round has at least one attempt, so an attempt budget bounds the rounds played: the
+    // work and memory set aside follow what the run can do, not `rounds` (the picks are the
+    // rounds' first draws; the same seeds draw them again in each round).
+    let used: Vec<usize> = (0..playable_rounds(spec))
+        .flat_map(|round| round_picks(spec, library, round, &mut round_rng(spec, round)))
+        .collect();
+    shapes.prepare(library, &used);
+    shapes.check(&spec.config.world, library, &used)?;
+    Ok(shapes)
+}
+
+/// The rounds a run can play: `rounds`, or fewer when the attempt budget ends it first.
+fn playable_rounds(spec: &RunSpec) -> usize {
+    spec.max_attempts
+        .map_or(spec.rounds, |a| a.min(spec.rounds))
 }
 
 /// A grasp candidate on one view.
@@ -708,16 +736,23 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
     }
 }
 
-fn play(
+/// Plays the run; `shapes` from [`prepare_shapes`] (prepared here when `None`).
+pub(crate) fn play(
     spec: &RunSpec,
     library: &[ObjectModel],
+    shapes: Option<LibraryShapes>,
     source: &mut dyn GraspSource,
     recognizer: Option<&mut Recognizer>,
     observer: &mut dyn RunObserver,
     on_progress: impl FnMut(Progress),
 ) -> Result<RunResults, SimError> {
     let start = Instant::now();
-    spec.validate(library, recognizer.as_deref().map(Recognizer::labels))?;
+    let labels = recognizer.as_deref().map(Recognizer::labels);
+    // Shapes given come from `prepare_shapes` on this spec (a job's), which validated it.
+    let shapes = match shapes {
+        Some(shapes) => shapes,
+        None => prepare_shapes(spec, library, labels)?,
+    };
     let perception = Perception::new(spec.config.cameras.clone())?;
     let mut arrival = spec.arrival.as_ref().map(|a| {
         let at = spec.config.scenario.clutter_center_xy_m;
@@ -727,7 +762,7 @@ fn play(
         spec,
         library,
         gripper: spec.config.grasp_spec(),
-        shapes: LibraryShapes::new(spec.config.shapes.clone(), library.len()),
+        shapes,
         source,
         perception,
         attempts: Vec::new(),
@@ -739,19 +774,7 @@ fn play(
         replay_s: 0.0,
         recognised: Vec::new(),
     };
-    // Decompose every object the rounds will show ahead, in parallel (the picks are the
-    // rounds' first draws; the same seeds draw them again in each round).
-    // Every round has at least one attempt, so an attempt budget bounds the rounds played: the
-    // work and memory set aside follow what the run can do, not `rounds` (rounds past the
-    // budget are never drawn; a round beyond the prepared ones would decompose on first use).
-    let playable = spec
-        .max_attempts
-        .map_or(spec.rounds, |a| a.min(spec.rounds));
-    let used: Vec<usize> = (0..playable)
-        .flat_map(|round| round_picks(spec, library, round, &mut round_rng(spec, round)))
-        .collect();
-    runner.shapes.prepare(library, &used);
-    let mut rounds = Vec::with_capacity(playable);
+    let mut rounds = Vec::with_capacity(playable_rounds(spec));
     let (mut setup_s, mut sim_s) = (0.0, 0.0);
     for r in 0..spec.rounds {
         if runner.budget_spent() {

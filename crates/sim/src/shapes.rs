@@ -35,7 +35,7 @@ use rapier3d::math::Vector;
 use rapier3d::parry::transformation::vhacd::{VHACD, VHACDParameters};
 use serde::{Deserialize, Serialize};
 
-use crate::world::{DropRegion, ObjectHandle, World, WorldError};
+use crate::world::{DropRegion, ObjectHandle, World, WorldConfig, WorldError};
 
 /// How an object's collider is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -224,6 +224,33 @@ impl LibraryShapes {
     /// The config.
     pub fn config(&self) -> &ShapeConfig {
         &self.config
+    }
+
+    /// Builds the collider of every library object `indices` names (once each) in a scratch
+    /// world of `world`: a mesh whose hull or parts cannot be built fails here, naming the
+    /// object, instead of when its round comes.
+    pub fn check(
+        &mut self,
+        world: &WorldConfig,
+        library: &[ObjectModel],
+        indices: &[usize],
+    ) -> Result<(), WorldError> {
+        let mut scratch = World::new(world.clone())?;
+        let [x, y, _] = world.table.center_m;
+        let pose = lgdm_pointcloud::math::translation([x, y, world.table.top_z_m()]);
+        let mut todo: Vec<usize> = indices
+            .iter()
+            .copied()
+            .filter(|&i| i < library.len())
+            .collect();
+        todo.sort_unstable();
+        todo.dedup();
+        for i in todo {
+            let object = &library[i];
+            let h = self.spawn(&mut scratch, i, &object.name, object, &pose)?;
+            scratch.remove_object(h)?;
+        }
+        Ok(())
     }
 
     /// Spawns library object `index` (`object`) at `pose` with its collider shape.

@@ -195,3 +195,58 @@ fn a_record_without_the_models_names_is_refused() {
         other => panic!("{other:?}"),
     }
 }
+
+/// Row 9: every object the rounds will show has its collider built before the first round — a
+/// 1 mm speck among good meshes (its single hull builds, its decomposition's parts do not) is
+/// refused when the job is prepared, naming it, not when its round comes.
+#[test]
+fn a_mesh_that_cannot_be_simulated_fails_before_the_first_round() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cube = |path: &Path, side: f64| {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        let h = side / 2.0;
+        let mut text = String::new();
+        for x in [-h, h] {
+            for y in [-h, h] {
+                for z in [0.0, side] {
+                    text.push_str(&format!("v {x} {y} {z}\n"));
+                }
+            }
+        }
+        for q in [
+            [1, 3, 4, 2],
+            [5, 6, 8, 7],
+            [1, 2, 6, 5],
+            [3, 7, 8, 4],
+            [1, 5, 7, 3],
+            [2, 4, 8, 6],
+        ] {
+            text.push_str(&format!(
+                "f {} {} {}\nf {} {} {}\n",
+                q[0], q[1], q[2], q[0], q[2], q[3]
+            ));
+        }
+        std::fs::write(path, text).unwrap();
+    };
+    let meshes = tmp.path().join("meshes");
+    cube(&meshes.join("box/box_01.obj"), 0.06);
+    cube(&meshes.join("can/can_01.obj"), 0.05);
+    let good = GraspSetup {
+        rounds: 6,
+        objects: Some(ObjectSource::Meshes {
+            dir: meshes.clone(),
+            units: lgdm_pointcloud::import::MeshUnits::parse(&["m"]).unwrap(),
+        }),
+        ..GraspSetup::default()
+    };
+    assert!(GraspJob::prepare(good.clone()).is_ok());
+    cube(&meshes.join("dot/dot_01.obj"), 0.001);
+    let out = tmp.path().join("run");
+    let with_speck = GraspSetup {
+        out: Some(Output::new(&out)),
+        ..good
+    };
+    let e = GraspJob::prepare(with_speck).unwrap_err();
+    assert!(e.to_string().contains("dot_01"), "{e}");
+    assert!(!out.exists(), "the run directory was touched");
+}
