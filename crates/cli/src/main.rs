@@ -1,10 +1,14 @@
 //! `lgdm`: the command line of the lifelong 3D object recognition and grasping system.
 //!
 //! `main` only parses arguments, runs one subcommand and maps its error to an exit code;
-//! every subcommand lives in its own module under `cmd/` and composes library calls.
+//! every subcommand lives in its own module under `cmd/` and composes library calls. Stdout and
+//! stderr are written only through [`output`], so a closed pipe ends a command quietly instead of
+//! panicking.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 mod cmd;
 mod data;
+mod output;
 mod plot;
 mod progress;
 mod report;
@@ -45,6 +49,8 @@ fn main() -> std::process::ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         )
         .with_writer(std::io::stderr)
+        // Otherwise a failed write to a closed stderr is reported with `eprintln!`, which panics.
+        .log_internal_errors(false)
         .init();
     let result = match cli.command {
         Command::Info => cmd::info::run(),
@@ -57,8 +63,10 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // The reader of stdout has gone (`lgdm … | head`): nothing is wrong, stop quietly.
+        Err(err) if output::is_stdout_closed(&err) => std::process::ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            output::errln!("error: {err:#}");
             std::process::ExitCode::FAILURE
         }
     }

@@ -9,7 +9,8 @@
 //! ```
 
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::Write;
+
+use crate::output::errln;
 
 /// How progress is shown (`--progress`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -38,7 +39,7 @@ impl Reporter {
     /// A one-line note for the user (stderr; a JSON line in `jsonl` mode; dropped in `none`).
     pub fn message(&self, text: &str) {
         match self.mode {
-            ProgressMode::Bar => eprintln!("{text}"),
+            ProgressMode::Bar => errln!("{text}"),
             ProgressMode::Jsonl => {
                 json_line(&serde_json::json!({ "event": "message", "text": text }))
             }
@@ -79,8 +80,7 @@ impl Reporter {
 }
 
 fn json_line(value: &serde_json::Value) {
-    let mut err = std::io::stderr().lock();
-    let _ = writeln!(err, "{value}");
+    errln!("{value}");
 }
 
 /// One task's progress.

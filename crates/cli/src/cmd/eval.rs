@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::data::{self, Encoder};
+use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 use lgdm_gdm::experiment::run_dir::write_atomic;
 
@@ -209,39 +210,39 @@ pub fn run(args: Args) -> Result<()> {
         serde_json::to_string_pretty(&result)?.as_bytes(),
     )?;
 
-    println!(
+    outln!(
         "model {} on {} ({} samples, {:?} collections, context {})",
         args.model.display(),
         ds.dir().display(),
         e.n,
         args.split,
         if args.no_context { "off" } else { "on" }
-    );
-    println!(
+    )?;
+    outln!(
         "instance accuracy (G-EM)   {:6.2} %",
         100.0 * e.instance_accuracy
-    );
-    println!(
+    )?;
+    outln!(
         "category accuracy (G-EM)   {:6.2} %",
         100.0 * e.category_accuracy_em
-    );
-    println!(
+    )?;
+    outln!(
         "category accuracy (G-SM)   {:6.2} %",
         100.0 * e.category_accuracy_sm
-    );
-    println!(
+    )?;
+    outln!(
         "nodes G-EM / G-SM          {} / {}",
         gdm.episodic().len(),
         gdm.semantic().len()
-    );
-    println!("model size                 {size_mb:.3} MB");
-    println!(
+    )?;
+    outln!("model size                 {size_mb:.3} MB")?;
+    outln!(
         "inference time             {:.4} ms/sample",
         e.ms_per_sample
-    );
-    println!(
+    )?;
+    outln!(
         "confusion matrix           {}",
         out.join("confusion.csv").display()
-    );
+    )?;
     Ok(())
 }

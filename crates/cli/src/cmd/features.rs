@@ -13,6 +13,7 @@ use lgdm_pointcloud::dataset::{Dataset, Progress};
 use lgdm_pointcloud::features::good_features;
 
 use crate::data::{self, Encoder, FeatureSource};
+use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
 /// Arguments of `lgdm features`.
@@ -93,13 +94,13 @@ pub fn run(args: Args) -> Result<()> {
             FeatureSource::Good => "GOOD values",
             FeatureSource::Ae { .. } => "autoencoder values",
         };
-        println!(
+        outln!(
             "wrote {}: {} views × {} {what} in {:.1} s",
             args.out.display(),
             table.len(),
             table.dim,
             elapsed
-        );
+        )?;
     }
     Ok(())
 }

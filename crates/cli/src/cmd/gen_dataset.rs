@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use lgdm_pointcloud::dataset::{self, DatasetSpec, Progress};
 use lgdm_pointcloud::import::MeshUnits;
 
+use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
 /// Dataset presets.
@@ -109,7 +110,7 @@ pub fn run(args: Args) -> Result<()> {
             } else {
                 " (not the 2 cm to 60 cm of a household object: check --units)"
             };
-            println!("mesh {}: {}{warning}", report.file, report.describe());
+            outln!("mesh {}: {}{warning}", report.file, report.describe())?;
         }
     }
     reporter.event(&serde_json::json!({
@@ -124,7 +125,7 @@ pub fn run(args: Args) -> Result<()> {
         "seconds": elapsed,
     }));
     if args.progress != ProgressMode::Jsonl {
-        println!(
+        outln!(
             "wrote {}: {} objects in {} categories, {} collections ({} train / {} test), {} views, {:.1} MB of MCAP, {} grasp images in {:.1} s",
             args.out.display(),
             manifest.instances.len(),
@@ -136,9 +137,9 @@ pub fn run(args: Args) -> Result<()> {
             bytes as f64 / 1e6,
             manifest.grasp.as_ref().map_or(0, |g| g.images),
             elapsed
-        );
+        )?;
         for p in &manifest.previews {
-            println!("preview: {}", args.out.join(p).display());
+            outln!("preview: {}", args.out.join(p).display())?;
         }
     }
     Ok(())

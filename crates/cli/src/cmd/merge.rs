@@ -15,6 +15,7 @@ use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
 use lgdm_gdm::experiment::run_dir::{self, Run, RunDir, merge};
 
+use crate::output::{errln, outln};
 use crate::report;
 
 /// Arguments of `lgdm merge`.
@@ -43,7 +44,7 @@ pub fn run(args: Args) -> Result<()> {
     let metrics = &merged.metrics;
     let seeds: Vec<u64> = metrics.trials.iter().map(|t| t.seed).collect();
     if seeds.windows(2).any(|w| w[1] != w[0] + 1) {
-        eprintln!(
+        errln!(
             "note: the seeds {seeds:?} are not consecutive; the merged run is not the same as one \
              `lgdm train --trials {}` run",
             seeds.len()
@@ -65,16 +66,16 @@ pub fn run(args: Args) -> Result<()> {
     let table = report::summary_table(metrics);
     run_dir::write_atomic(&out.join("summary.txt"), table.as_bytes())?;
     if missing > 0 {
-        eprintln!(
+        errln!(
             "note: {missing} trial model(s) were not found next to their metrics.json and are not linked"
         );
     }
-    println!("{table}");
-    println!(
+    outln!("{table}")?;
+    outln!(
         "merged {} run(s), {} trial(s), seeds {seeds:?}: {}",
         runs.len(),
         metrics.trials.len(),
         out.display()
-    );
+    )?;
     Ok(())
 }

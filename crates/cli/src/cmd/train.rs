@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::data::{self, Encoder};
+use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 use crate::report;
 
@@ -448,7 +449,7 @@ pub fn run(args: Args) -> Result<()> {
     crate::plot::write_run_plots(out, &metrics).context("drawing the plots")?;
     let table_text = report::summary_table(&metrics);
     lgdm_gdm::experiment::run_dir::write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
-    println!("{table_text}");
-    println!("run directory: {}", out.display());
+    outln!("{table_text}")?;
+    outln!("run directory: {}", out.display())?;
     Ok(())
 }
