@@ -314,40 +314,35 @@ fn jobs(requested: Option<usize>) -> Result<usize> {
     }
 }
 
+/// The experiment of a run being resumed: its own settings, read from its `config.toml`.
+fn resumed_plan(dir: &Path) -> Result<Plan> {
+    let config = RunConfig::read(dir)?;
+    let encoder = match config.encoder.as_str() {
+        "good" => Encoder::Good,
+        "ae" => Encoder::Ae,
+        other => bail!("{}: unknown encoder {other:?}", dir.display()),
+    };
+    Ok(Plan {
+        settings: config.settings(),
+        from: config.hyperparameters_from,
+        encoder,
+        dataset: Some(PathBuf::from(config.dataset)),
+        ae_checkpoint: config.ae_checkpoint.map(PathBuf::from),
+    })
+}
+
 /// Runs `lgdm train`.
 pub fn run(args: Args) -> Result<()> {
     let reporter = Reporter::new(args.progress);
     let jobs = jobs(args.jobs)?;
-    // The run directory is taken only once the settings and the encoder check out, so a
-    // refused run leaves nothing behind.
-    let (run_dir, plan, source, recorded) = match &args.resume {
-        Some(dir) => {
-            let (run_dir, config) = RunDir::resume(dir)?;
-            let encoder = match config.encoder.as_str() {
-                "good" => Encoder::Good,
-                "ae" => Encoder::Ae,
-                other => bail!("{}: unknown encoder {other:?}", dir.display()),
-            };
-            let plan = Plan {
-                settings: config.settings(),
-                from: config.hyperparameters_from.clone(),
-                encoder,
-                dataset: Some(PathBuf::from(&config.dataset)),
-                ae_checkpoint: config.ae_checkpoint.as_ref().map(PathBuf::from),
-            };
-            let source = data::FeatureSource::resolve(plan.encoder, plan.ae_checkpoint.as_deref())?;
-            (run_dir, plan, source, Some(config))
-        }
-        None => {
-            let plan = plan(&args, &reporter)?;
-            let source = data::FeatureSource::resolve(plan.encoder, plan.ae_checkpoint.as_deref())?;
-            let out = args
-                .out
-                .clone()
-                .unwrap_or_else(|| default_run_dir(plan.settings.scenario));
-            (RunDir::create(&out, args.force)?, plan, source, None)
-        }
+    // The settings, the encoder and the data are all checked before the run directory is taken
+    // (created, replaced with --force, or locked to resume): a refused run leaves it as it was
+    // found, and --force removes an old run only for a run that starts.
+    let plan = match &args.resume {
+        Some(dir) => resumed_plan(dir)?,
+        None => plan(&args, &reporter)?,
     };
+    let source = data::FeatureSource::resolve(plan.encoder, plan.ae_checkpoint.as_deref())?;
     let ds = data::open_dataset(plan.dataset.as_deref(), &reporter)?;
     let features = data::features(&ds, &source, &reporter)?;
     let manifest = ds.manifest();
@@ -381,25 +376,25 @@ pub fn run(args: Args) -> Result<()> {
     };
     let run_config = RunConfig::new(&experiment, &provenance);
     let s = experiment.settings();
-    let finished = match &recorded {
-        Some(config) => {
-            if *config != run_config {
-                bail!(
-                    "{} cannot be resumed as it was started: its config.toml no longer matches \
-                     (the dataset or the autoencoder checkpoint changed?)",
-                    run_dir.path().display()
-                );
-            }
-            run_dir.finished_trials(s.trials)?
+    let (run_dir, finished) = match &args.resume {
+        Some(dir) => {
+            let run_dir = RunDir::resume(dir, &run_config)?;
+            let finished = run_dir.finished_trials(s.trials)?;
+            (run_dir, finished)
         }
         None => {
+            let out = args
+                .out
+                .clone()
+                .unwrap_or_else(|| default_run_dir(s.scenario));
+            let run_dir = RunDir::create(&out, args.force)?;
             run_dir.write_config(&run_config)?;
-            vec![None; s.trials]
+            (run_dir, vec![None; s.trials])
         }
     };
     let todo: Vec<usize> = (0..s.trials).filter(|&t| finished[t].is_none()).collect();
     let steps = experiment.steps();
-    if recorded.is_some() {
+    if args.resume.is_some() {
         reporter.message(&format!(
             "resuming {}: {} of {} trial(s) recorded, running {:?}",
             run_dir.path().display(),

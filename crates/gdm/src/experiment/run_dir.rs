@@ -10,7 +10,9 @@
 //! A [`RunDir`] owns its directory: it is created fresh (or an old run in it is removed first,
 //! when asked), and a lock file keeps a second process out while one writes. A run stopped part
 //! way (killed, out of power) keeps its finished trials; [`RunDir::resume`] reopens it and
-//! [`RunDir::finished_trials`] says which trials are left.
+//! [`RunDir::finished_trials`] says which trials are left. Taking a directory is the last check
+//! of a run: a directory that is refused is left as it was found (no lock file, no new
+//! directory), so front ends check everything else first.
 //!
 //! Trial t of an experiment with base seed S uses seed S + t, so a 5-trial experiment can run as
 //! five single-trial runs and be [`merge`]d: runs merge only when they are one experiment
@@ -130,6 +132,21 @@ impl RunConfig {
     /// Parses `config.toml` text; an error names the offending key and line.
     pub fn from_toml(text: &str) -> Result<RunConfig, String> {
         toml::from_str(text).map_err(|e| e.to_string())
+    }
+
+    /// Reads the `config.toml` of the run directory `dir` (nothing is locked or written). A
+    /// directory without one is not a run directory; one that is not a run's is an error naming
+    /// the offending key and line.
+    pub fn read(dir: &Path) -> Result<RunConfig, ExperimentError> {
+        let cpath = dir.join(CONFIG_FILE);
+        if !cpath.is_file() {
+            return Err(run_dir_error(
+                dir,
+                "is not a run directory (no config.toml)",
+            ));
+        }
+        let text = std::fs::read_to_string(&cpath).map_err(|e| run_dir_error(&cpath, e))?;
+        RunConfig::from_toml(&text).map_err(|e| run_dir_error(&cpath, e))
     }
 
     /// The experiment settings this run used.
@@ -285,19 +302,20 @@ impl RunDir {
         })
     }
 
-    /// Reopens a run directory to finish it: locks it and reads its `config.toml`.
-    pub fn resume(dir: &Path) -> Result<(RunDir, RunConfig), ExperimentError> {
-        let cpath = dir.join(CONFIG_FILE);
-        if !cpath.is_file() {
+    /// Reopens the run directory `dir` to finish it as `expected` (the settings the resumed run
+    /// has, made from the [`RunConfig::read`] of `dir` and the data as they are now) and locks
+    /// it. A directory whose `config.toml` is missing, is not a run's, or no longer matches
+    /// `expected` (the dataset or the autoencoder checkpoint changed) is refused before the lock
+    /// is taken, so it is left as it was found.
+    pub fn resume(dir: &Path, expected: &RunConfig) -> Result<RunDir, ExperimentError> {
+        if RunConfig::read(dir)? != *expected {
             return Err(run_dir_error(
                 dir,
-                "is not a run directory (no config.toml): nothing to resume",
+                "cannot be resumed as it was started: its config.toml no longer matches (the \
+                 dataset or the autoencoder checkpoint changed?)",
             ));
         }
-        let run = RunDir::lock(dir)?;
-        let text = std::fs::read_to_string(&cpath).map_err(|e| run_dir_error(&cpath, e))?;
-        let config = RunConfig::from_toml(&text).map_err(|e| run_dir_error(&cpath, e))?;
-        Ok((run, config))
+        RunDir::lock(dir)
     }
 
     /// The directory.
@@ -640,6 +658,41 @@ mod tests {
             text.contains("ae_checkpoint_fnv1a = \"00000000000000aa\""),
             "{text}"
         );
+    }
+
+    #[test]
+    fn a_refused_resume_leaves_the_directory_as_found() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        let listing = || {
+            let mut names: Vec<String> = std::fs::read_dir(dir)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        };
+        let config = run("x", &[0], true).config;
+        std::fs::write(dir.join("notes.txt"), "mine").unwrap();
+        let e = RunDir::resume(dir, &config).unwrap_err().to_string();
+        assert!(e.contains("not a run directory"), "{e}");
+        assert_eq!(listing(), ["notes.txt"]);
+        // Another tool's config.toml.
+        std::fs::write(dir.join(CONFIG_FILE), "[build]\njobs = 2\n").unwrap();
+        let e = RunDir::resume(dir, &config).unwrap_err().to_string();
+        assert!(e.contains("unknown field"), "{e}");
+        assert_eq!(listing(), [CONFIG_FILE, "notes.txt"]);
+        // A run whose data changed since.
+        let mut started = config.clone();
+        started.dataset = "/elsewhere".into();
+        std::fs::write(dir.join(CONFIG_FILE), started.to_toml()).unwrap();
+        let e = RunDir::resume(dir, &config).unwrap_err().to_string();
+        assert!(e.contains("no longer matches"), "{e}");
+        assert_eq!(listing(), [CONFIG_FILE, "notes.txt"]);
+        // The run's own settings: taken.
+        std::fs::write(dir.join(CONFIG_FILE), config.to_toml()).unwrap();
+        let _run = RunDir::resume(dir, &config).unwrap();
+        assert!(lgdm_base::fs::DirLock::is_held(dir));
     }
 
     #[test]
