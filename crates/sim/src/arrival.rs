@@ -260,6 +260,16 @@ impl<'a> ArrivalRun<'a> {
         }
     }
 
+    /// The evaluation when the late categories arrived, once made.
+    pub fn at_switch(&self) -> Option<&Evaluation> {
+        self.at_switch.as_ref()
+    }
+
+    /// Continues a resumed run: the evaluation at the switch its finished rounds made.
+    pub fn restore(&mut self, at_switch: Option<Evaluation>) {
+        self.at_switch = at_switch;
+    }
+
     /// Before round `round`: when the late categories arrive with it, what the early rounds
     /// taught.
     pub fn before_round(

@@ -37,6 +37,7 @@ use std::path::{Path, PathBuf};
 use lgdm_base::Progress;
 use lgdm_pointcloud::import::{ImportReport, MeshUnits, load_mesh_library};
 use lgdm_pointcloud::objects::{CATEGORIES, ObjectModel, procedural_library};
+use serde::{Deserialize, Serialize};
 
 use crate::arrival::Arrival;
 use crate::camera::CameraConfig;
@@ -47,15 +48,16 @@ use crate::packing::PackingSpec;
 use crate::recognize::{Labels, RecognitionConfig, RecognitionError, Recognizer, ViewEncoder};
 use crate::record::{RecordConfig, RoundRecorder};
 use crate::results::RunResults;
-use crate::run_dir::SimRunDir;
-use crate::runner::{play, prepare_shapes};
+use crate::run_dir::{Checkpoint, SimRunDir};
+use crate::runner::{RunState, play, prepare_shapes};
 use crate::scenario::{Scenario, interleaved_order};
 use crate::shapes::LibraryShapes;
 use crate::source::GraspSource;
 use crate::spec::{RunSpec, SimError};
 
 /// Where a job's objects come from.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ObjectSource {
     /// The procedural objects: `instances` per category, built from `seed`.
     Procedural {
@@ -150,7 +152,7 @@ fn setting(name: &'static str, value: impl ToString, reason: impl ToString) -> S
 }
 
 /// Where a job writes its run directory.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Output {
     /// The run directory (new or empty).
     pub dir: PathBuf,
@@ -170,7 +172,7 @@ impl Output {
 }
 
 /// What `lgdm sim grasp` takes. Defaults are the binary's.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct GraspSetup {
     /// The scenario (default isolated).
     pub scenario: Scenario,
@@ -185,8 +187,13 @@ pub struct GraspSetup {
     pub config: SimConfig,
     /// Record the rounds (default none).
     pub record: Option<RecordConfig>,
-    /// The run directory (none: results only).
+    /// The run directory (none: results only). Not part of the job's record.
+    #[serde(skip)]
     pub out: Option<Output>,
+    /// Where the caller's network source came from, recorded in the job's record so that a
+    /// resumed run can load it again (the library does not load it).
+    #[serde(default)]
+    pub ae_checkpoint: Option<PathBuf>,
 }
 
 impl Default for GraspSetup {
@@ -199,6 +206,7 @@ impl Default for GraspSetup {
             config: SimConfig::default(),
             record: None,
             out: None,
+            ae_checkpoint: None,
         }
     }
 }
@@ -206,6 +214,7 @@ impl Default for GraspSetup {
 /// A checked grasp run, ready to play.
 #[derive(Debug)]
 pub struct GraspJob {
+    setup: GraspSetup,
     spec: RunSpec,
     library: ObjectLibrary,
     shapes: LibraryShapes,
@@ -216,6 +225,7 @@ pub struct GraspJob {
 impl GraspJob {
     /// Builds the objects and checks everything (see the module docs).
     pub fn prepare(setup: GraspSetup) -> Result<GraspJob, SimError> {
+        let kept = setup.clone();
         if setup.rounds == 0 {
             return Err(setting("rounds", 0, "at least one round is needed"));
         }
@@ -233,6 +243,7 @@ impl GraspJob {
         }
         let shapes = prepare_shapes(&spec, &library.objects, None)?;
         Ok(GraspJob {
+            setup: kept,
             spec,
             library,
             shapes,
@@ -251,36 +262,146 @@ impl GraspJob {
         &self.library
     }
 
-    /// Plays the run with `source` and writes the run directory (when the setup has one).
+    /// Plays the run with `source` and writes the run directory (when the setup has one): the
+    /// job's record first, a checkpoint after every round, the results at the end.
     pub fn run(
         &self,
         source: &mut dyn GraspSource,
         on_progress: impl FnMut(Progress),
     ) -> Result<RunResults, SimError> {
-        let mut dir = open(self.out.as_ref())?;
+        let dir = open(self.out.as_ref())?;
+        if let Some(d) = &dir {
+            d.write_job(&JobRecord::new(
+                source,
+                JobKind::Grasp(Box::new(self.setup.clone())),
+            ))?;
+        }
+        self.play_into(dir, source, None, on_progress)
+    }
+
+    /// Finishes the interrupted run in the setup's run directory (prepared from its
+    /// [`JobRecord`], with `source` built as the record names it): the finished rounds are kept as
+    /// they were written, and the results, recordings and files equal a run never stopped.
+    pub fn resume(
+        &self,
+        source: &mut dyn GraspSource,
+        on_progress: impl FnMut(Progress),
+    ) -> Result<RunResults, SimError> {
+        let dir = reopen(self.out.as_ref(), source)?;
+        let state = dir.read_checkpoint()?.map(|(c, _)| c.state);
+        self.play_into(Some(dir), source, state, on_progress)
+    }
+
+    fn play_into(
+        &self,
+        mut dir: Option<SimRunDir>,
+        source: &mut dyn GraspSource,
+        state: Option<RunState>,
+        on_progress: impl FnMut(Progress),
+    ) -> Result<RunResults, SimError> {
         let spec = &self.spec;
+        let saver = dir.as_ref().map(SimRunDir::checkpointer);
+        let checkpoint = &mut |s: &RunState, r: Option<&Recognizer>| {
+            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))
+        };
         let cameras = &spec.config.cameras;
+        let library = &self.library.objects;
         let results = observed(self.record.as_ref(), dir.as_mut(), cameras, |observer| {
             let shapes = Some(self.shapes.clone());
             play(
                 spec,
-                &self.library.objects,
+                library,
                 shapes,
                 source,
                 None,
                 observer,
                 on_progress,
+                state,
+                checkpoint,
             )
         })?;
         if let Some(dir) = &dir {
             dir.write_results(&results)?;
+            dir.finish()?;
         }
         Ok(results)
     }
 }
 
+/// What a run directory's [`crate::run_dir::JOB_FILE`] holds: the job's setup and the grasp
+/// source it ran with, so that `resume` can play it again.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JobRecord {
+    /// [`JOB_FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The grasp source's name (`analytic`, `random`, `network`).
+    pub grasp_source: String,
+    /// The job.
+    pub job: JobKind,
+}
+
+/// Version of the job record's layout.
+pub const JOB_FORMAT_VERSION: u32 = 1;
+
+/// A job's kind and setup.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JobKind {
+    /// `lgdm sim grasp`.
+    Grasp(Box<GraspSetup>),
+    /// `lgdm sim pick-place`, or with targets `lgdm sim packing`.
+    PickPlace(Box<PickPlaceSetup>),
+}
+
+impl JobRecord {
+    fn new(source: &dyn GraspSource, job: JobKind) -> Self {
+        Self {
+            format_version: JOB_FORMAT_VERSION,
+            grasp_source: source.name().to_string(),
+            job,
+        }
+    }
+
+    /// The record of the run in `dir` (to prepare the job again and resume it).
+    pub fn read(dir: &std::path::Path) -> Result<JobRecord, SimError> {
+        let record: JobRecord = SimRunDir::read_job(dir)?;
+        if record.format_version != JOB_FORMAT_VERSION {
+            return Err(SimError::RunDir {
+                path: dir.to_path_buf(),
+                reason: format!(
+                    "job record version {}, this lgdm reads version {JOB_FORMAT_VERSION}",
+                    record.format_version
+                ),
+            });
+        }
+        Ok(record)
+    }
+}
+
+/// The run directory of `out` reopened to resume (it must be there), for `source` — the one its
+/// record names.
+fn reopen(out: Option<&Output>, source: &dyn GraspSource) -> Result<SimRunDir, SimError> {
+    let Some(out) = out else {
+        return Err(setting("resume", "", "resuming needs the run directory"));
+    };
+    let dir = SimRunDir::reopen(&out.dir)?;
+    let record = JobRecord::read(&out.dir)?;
+    if record.grasp_source != source.name() {
+        return Err(setting(
+            "grasp",
+            source.name(),
+            format!(
+                "the run in {} used {}",
+                out.dir.display(),
+                record.grasp_source
+            ),
+        ));
+    }
+    Ok(dir)
+}
+
 /// What `lgdm sim pick-place` and `lgdm sim packing` take. Defaults are the binary's.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct PickPlaceSetup {
     /// The scenario: scattered (default; the paper's table), packed or pile — not isolated.
     pub scenario: Scenario,
@@ -315,8 +436,14 @@ pub struct PickPlaceSetup {
     pub config: SimConfig,
     /// Record the rounds (default none).
     pub record: Option<RecordConfig>,
-    /// The run directory (none: results only, the model stays in memory).
+    /// The run directory (none: results only, the model stays in memory). Not part of the
+    /// job's record.
+    #[serde(skip)]
     pub out: Option<Output>,
+    /// Where the caller's network source or autoencoder encoder came from, recorded in the
+    /// job's record so that a resumed run can load it again (the library does not load it).
+    #[serde(default)]
+    pub ae_checkpoint: Option<PathBuf>,
 }
 
 impl Default for PickPlaceSetup {
@@ -339,6 +466,7 @@ impl Default for PickPlaceSetup {
             config: SimConfig::default(),
             record: None,
             out: None,
+            ae_checkpoint: None,
         }
     }
 }
@@ -346,6 +474,7 @@ impl Default for PickPlaceSetup {
 /// A checked pick-and-place (or packing) run, ready to play.
 #[derive(Debug)]
 pub struct PickPlaceJob {
+    setup: PickPlaceSetup,
     spec: RunSpec,
     library: ObjectLibrary,
     shapes: LibraryShapes,
@@ -363,6 +492,7 @@ impl PickPlaceJob {
     /// Builds or imports the objects, reads and checks the model, checks everything (see the
     /// module docs).
     pub fn prepare(setup: PickPlaceSetup) -> Result<PickPlaceJob, SimError> {
+        let kept = setup.clone();
         let packing = setup.targets.is_some();
         let job = if packing { "packing" } else { "pick-place" };
         if setup.rounds == Some(0) {
@@ -491,6 +621,7 @@ impl PickPlaceJob {
         check_inputs(setup.out.as_ref(), &inputs)?;
         let shapes = prepare_shapes(&spec, &set, Some(&labels))?;
         Ok(PickPlaceJob {
+            setup: kept,
             spec,
             library,
             shapes,
@@ -546,6 +677,35 @@ impl PickPlaceJob {
         encoder: Box<dyn ViewEncoder>,
         on_progress: impl FnMut(Progress),
     ) -> Result<(RunResults, Recognizer), SimError> {
+        self.check_encoder(encoder.as_ref())?;
+        let dir = open(self.out.as_ref())?;
+        if let Some(d) = &dir {
+            d.write_job(&JobRecord::new(
+                source,
+                JobKind::PickPlace(Box::new(self.setup.clone())),
+            ))?;
+        }
+        self.play_into(dir, source, encoder, None, on_progress)
+    }
+
+    /// Finishes the interrupted run in the setup's run directory (prepared from its
+    /// [`JobRecord`], with `source` and `encoder` built as the record names them): from the model
+    /// and state its last finished round left, so the results, model and recordings equal a run
+    /// never stopped.
+    pub fn resume(
+        self,
+        source: &mut dyn GraspSource,
+        encoder: Box<dyn ViewEncoder>,
+        on_progress: impl FnMut(Progress),
+    ) -> Result<RunResults, SimError> {
+        self.check_encoder(encoder.as_ref())?;
+        let dir = reopen(self.out.as_ref(), source)?;
+        let checkpoint = dir.read_checkpoint()?;
+        self.play_into(Some(dir), source, encoder, checkpoint, on_progress)
+            .map(|(results, _)| results)
+    }
+
+    fn check_encoder(&self, encoder: &dyn ViewEncoder) -> Result<(), SimError> {
         if encoder.name() != self.encoder.0 || encoder.dim() != self.encoder.1 {
             return Err(SimError::Recognition(RecognitionError::InvalidConfig {
                 field: "encoder",
@@ -558,33 +718,65 @@ impl PickPlaceJob {
                 ),
             }));
         }
+        Ok(())
+    }
+
+    fn play_into(
+        self,
+        mut dir: Option<SimRunDir>,
+        source: &mut dyn GraspSource,
+        encoder: Box<dyn ViewEncoder>,
+        checkpoint: Option<(Checkpoint, Option<lgdm_gdm::Gdm>)>,
+        on_progress: impl FnMut(Progress),
+    ) -> Result<(RunResults, Recognizer), SimError> {
         let seed = self.spec.seed;
-        let mut recognizer = match self.start {
-            None => Recognizer::empty_with_encoder(self.recognition, encoder, self.labels, seed)?,
-            Some(start) => {
+        let config = self.recognition;
+        let (mut recognizer, state) = match (checkpoint, self.start) {
+            (Some((c, Some(gdm))), _) => {
+                let (Some(labels), Some(r)) = (c.labels, &c.state.recognizer) else {
+                    return Err(SimError::Recognition(RecognitionError::InvalidConfig {
+                        field: "progress",
+                        reason: "the checkpoint has a model but no recognizer state".into(),
+                    }));
+                };
+                let recognizer = Recognizer::restore(config, encoder, gdm, labels, seed, r)?;
+                (recognizer, Some(c.state))
+            }
+            (_, None) => (
+                Recognizer::empty_with_encoder(config, encoder, self.labels, seed)?,
+                None,
+            ),
+            (_, Some(start)) => {
                 let origin = start.path.display().to_string();
-                Recognizer::with_encoder(self.recognition, encoder, start.gdm, self.labels, seed)?
-                    .with_origin(origin)
+                let r = Recognizer::with_encoder(config, encoder, start.gdm, self.labels, seed)?;
+                (r.with_origin(origin), None)
             }
         };
-        let mut dir = open(self.out.as_ref())?;
         let (spec, set) = (&self.spec, &self.set);
+        let saver = dir.as_ref().map(SimRunDir::checkpointer);
+        let checkpoint = &mut |s: &RunState, r: Option<&Recognizer>| {
+            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))
+        };
         let cameras = &spec.config.cameras;
+        let shapes = Some(self.shapes);
+        let recognizer_ref = Some(&mut recognizer);
         let results = observed(self.record.as_ref(), dir.as_mut(), cameras, |observer| {
-            let shapes = Some(self.shapes);
             play(
                 spec,
                 set,
                 shapes,
                 source,
-                Some(&mut recognizer),
+                recognizer_ref,
                 observer,
                 on_progress,
+                state,
+                checkpoint,
             )
         })?;
         if let Some(dir) = &dir {
             dir.write_results(&results)?;
             dir.write_model(&recognizer)?;
+            dir.finish()?;
         }
         Ok((results, recognizer))
     }

@@ -727,6 +727,65 @@ impl Recognizer {
     pub fn into_parts(self) -> (Gdm, Labels) {
         (self.gdm, self.labels)
     }
+
+    /// Everything beyond the model and its labels that the next round depends on: where the view
+    /// stream is, the next sequence id, the counters, where the model came from. With the model
+    /// saved beside it, [`Recognizer::restore`] continues exactly where this one is.
+    pub fn state(&self) -> RecognizerState {
+        RecognizerState {
+            views_word_pos: self.rng.get_word_pos().to_string(),
+            next_sequence: self.next_sequence,
+            objects_seen: self.objects_seen,
+            lessons: self.lessons,
+            rounds: self.rounds,
+            origin: self.origin.clone(),
+        }
+    }
+
+    /// A recognizer built like this one (same config, encoder, seed) continued from `state`,
+    /// with the model `gdm` whose ids mean `labels` (both saved when `state` was taken).
+    pub fn restore(
+        config: RecognitionConfig,
+        encoder: Box<dyn ViewEncoder>,
+        gdm: Gdm,
+        labels: Labels,
+        seed: u64,
+        state: &RecognizerState,
+    ) -> Result<Self, RecognitionError> {
+        let word_pos: u128 =
+            state
+                .views_word_pos
+                .parse()
+                .map_err(|_| RecognitionError::InvalidConfig {
+                    field: "views_word_pos",
+                    reason: format!("`{}` is not a stream position", state.views_word_pos),
+                })?;
+        let mut r = Self::with_encoder(config, encoder, gdm, labels, seed)?;
+        r.rng.set_word_pos(word_pos);
+        r.next_sequence = state.next_sequence;
+        r.objects_seen = state.objects_seen;
+        r.lessons = state.lessons;
+        r.rounds = state.rounds;
+        r.origin = state.origin.clone();
+        Ok(r)
+    }
+}
+
+/// A recognizer's state beyond its model ([`Recognizer::state`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RecognizerState {
+    /// Where the view-subsampling stream is (a `u128` word position, as text).
+    pub views_word_pos: String,
+    /// The next sequence id.
+    pub next_sequence: u64,
+    /// Objects recognised so far.
+    pub objects_seen: usize,
+    /// Lessons so far.
+    pub lessons: usize,
+    /// Rounds ended so far.
+    pub rounds: usize,
+    /// Where the model came from.
+    pub origin: String,
 }
 
 /// The most frequent `Some` value; ties go to the value seen last among the tied.

@@ -19,12 +19,15 @@
 use std::path::{Path, PathBuf};
 
 use lgdm_base::fs::{DirLock, Entry, Ownership};
+use lgdm_gdm::Gdm;
+use serde::{Deserialize, Serialize};
 
 use crate::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelRecord};
-use crate::recognize::Recognizer;
+use crate::recognize::{Labels, Recognizer};
 use crate::record::{RecordError, RoundRecording, RoundSink};
 use crate::report::summary_text;
 use crate::results::{RESULTS_FILE, RunResults};
+use crate::runner::RunState;
 use crate::spec::SimError;
 
 /// The run's summary as text (the binary prints the same).
@@ -33,9 +36,47 @@ pub const SUMMARY_FILE: &str = "summary.txt";
 /// The folder of a run directory that holds the recorded rounds.
 pub const ROUNDS_DIR: &str = "rounds";
 
+/// The job a run directory holds, written before the first round ([`crate::job::JobRecord`]):
+/// what `resume` plays again.
+pub const JOB_FILE: &str = "job.json";
+
+/// Where an unfinished run is: written after every round, removed when the run is done
+/// ([`Checkpoint`]).
+pub const PROGRESS_FILE: &str = "progress.json";
+
+/// The folder of the model an unfinished run had learnt by its last finished round.
+pub const PROGRESS_DIR: &str = "progress";
+
+/// What [`PROGRESS_FILE`] holds: the run's state after its finished rounds and, with
+/// recognition, the labels of the model saved beside it in [`PROGRESS_DIR`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// The run's state.
+    pub state: RunState,
+    /// The model's labels (with recognition).
+    pub labels: Option<Labels>,
+    /// The model's file in [`PROGRESS_DIR`] (with recognition).
+    pub model: Option<String>,
+}
+
 /// What a sim run directory holds (what `force` may remove).
 fn classify(name: &str, is_dir: bool) -> Entry {
     let temporary = |n: &str| n.starts_with('.') && n.ends_with(".tmp");
+    if let Some(inner) = name.strip_prefix("progress/") {
+        let model = inner.starts_with("model-") && inner.ends_with(".lgdm");
+        return if !is_dir && (model || temporary(inner)) {
+            Entry::Ours
+        } else {
+            Entry::Foreign
+        };
+    }
+    if name == PROGRESS_DIR {
+        return if is_dir {
+            Entry::Folder
+        } else {
+            Entry::Foreign
+        };
+    }
     if let Some(inner) = name.strip_prefix("rounds/") {
         // Recorded rounds: only round files may be in there.
         let round =
@@ -55,7 +96,7 @@ fn classify(name: &str, is_dir: bool) -> Entry {
     }
     let ours = matches!(
         name,
-        RESULTS_FILE | SUMMARY_FILE | MODEL_FILE | MODEL_LABELS_FILE
+        RESULTS_FILE | SUMMARY_FILE | MODEL_FILE | MODEL_LABELS_FILE | JOB_FILE | PROGRESS_FILE
     ) || name.ends_with(".png")
         || temporary(name);
     if ours && !is_dir {
@@ -99,6 +140,27 @@ impl SimRunDir {
         })
     }
 
+    /// Reopens an unfinished run to finish it: locks it; it must hold a [`JOB_FILE`] and no
+    /// [`RESULTS_FILE`] (a finished run has nothing to resume).
+    pub fn reopen(dir: &Path) -> Result<SimRunDir, SimError> {
+        if !dir.join(JOB_FILE).is_file() {
+            return Err(dir_error(
+                dir,
+                format!("is not a sim run directory (no {JOB_FILE}): nothing to resume"),
+            ));
+        }
+        let lock = DirLock::try_acquire(dir)
+            .map_err(|e| dir_error(dir, e))?
+            .ok_or_else(|| dir_error(dir, "another lgdm process is writing this run directory"))?;
+        if dir.join(RESULTS_FILE).is_file() {
+            return Err(dir_error(dir, "the run is finished: nothing to resume"));
+        }
+        Ok(SimRunDir {
+            dir: dir.to_path_buf(),
+            _lock: lock,
+        })
+    }
+
     /// The directory.
     pub fn path(&self) -> &Path {
         &self.dir
@@ -107,10 +169,60 @@ impl SimRunDir {
     /// Writes `name` (a file name, or a path such as `rounds/round-0000.mcap` whose folders
     /// are created) in the directory atomically.
     pub fn write_file(&self, name: &str, bytes: &[u8]) -> Result<(), SimError> {
-        let path = self.dir.join(name);
-        let folder = path.parent().unwrap_or(&self.dir);
-        std::fs::create_dir_all(folder).map_err(|e| dir_error(folder, e))?;
-        lgdm_base::fs::write_bytes(&path, bytes).map_err(|e| dir_error(&path, e))
+        write_in(&self.dir, name, bytes)
+    }
+
+    /// Writes the [`JOB_FILE`].
+    pub fn write_job(&self, job: &impl Serialize) -> Result<(), SimError> {
+        let text = serde_json::to_string_pretty(job).map_err(|e| dir_error(&self.dir, e))?;
+        self.write_file(JOB_FILE, (text + "\n").as_bytes())
+    }
+
+    /// Reads the [`JOB_FILE`] of `dir`.
+    pub fn read_job<T: serde::de::DeserializeOwned>(dir: &Path) -> Result<T, SimError> {
+        let path = dir.join(JOB_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| dir_error(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| dir_error(&path, e))
+    }
+
+    /// What writes a [`Checkpoint`] after each round (it needs no borrow of the directory, which
+    /// the recording holds while the run plays).
+    pub fn checkpointer(&self) -> Checkpointer {
+        Checkpointer {
+            dir: self.dir.clone(),
+        }
+    }
+
+    /// The [`Checkpoint`] of an unfinished run with its model, if it finished a round.
+    pub fn read_checkpoint(&self) -> Result<Option<(Checkpoint, Option<Gdm>)>, SimError> {
+        let path = self.dir.join(PROGRESS_FILE);
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| dir_error(&path, e))?;
+        let checkpoint: Checkpoint =
+            serde_json::from_str(&text).map_err(|e| dir_error(&path, e))?;
+        let model = match &checkpoint.model {
+            Some(name) => {
+                let path = self.dir.join(PROGRESS_DIR).join(name);
+                Some(Gdm::load(&path).map_err(|e| dir_error(&path, e))?)
+            }
+            None => None,
+        };
+        Ok(Some((checkpoint, model)))
+    }
+
+    /// The run is done: its [`PROGRESS_FILE`] and [`PROGRESS_DIR`] go.
+    pub fn finish(&self) -> Result<(), SimError> {
+        let file = self.dir.join(PROGRESS_FILE);
+        if file.exists() {
+            std::fs::remove_file(&file).map_err(|e| dir_error(&file, e))?;
+        }
+        let folder = self.dir.join(PROGRESS_DIR);
+        if folder.exists() {
+            std::fs::remove_dir_all(&folder).map_err(|e| dir_error(&folder, e))?;
+        }
+        Ok(())
     }
 
     /// Writes [`RESULTS_FILE`] and [`SUMMARY_FILE`].
@@ -129,6 +241,55 @@ impl SimRunDir {
             .map_err(|e| dir_error(&path, e))?;
         let record = ModelRecord::new(recognizer.encoder_name(), recognizer.labels());
         self.write_file(MODEL_LABELS_FILE, record.to_json().as_bytes())
+    }
+}
+
+/// Writes `name` in `dir` atomically, creating its folders.
+fn write_in(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), SimError> {
+    let path = dir.join(name);
+    let folder = path.parent().unwrap_or(dir);
+    std::fs::create_dir_all(folder).map_err(|e| dir_error(folder, e))?;
+    lgdm_base::fs::write_bytes(&path, bytes).map_err(|e| dir_error(&path, e))
+}
+
+/// Writes a run's [`Checkpoint`] after each round: the model first, as a new file in
+/// [`PROGRESS_DIR`], then [`PROGRESS_FILE`] naming it, then the previous model goes — so a run
+/// killed at any point leaves a checkpoint whose model is there.
+#[derive(Debug)]
+pub struct Checkpointer {
+    dir: PathBuf,
+}
+
+impl Checkpointer {
+    /// Saves `state` and `recognizer`'s model.
+    pub fn save(&self, state: &RunState, recognizer: Option<&Recognizer>) -> Result<(), SimError> {
+        let folder = self.dir.join(PROGRESS_DIR);
+        let model = recognizer
+            .map(|r| -> Result<String, SimError> {
+                let name = format!("model-{:04}.lgdm", state.rounds_done);
+                let path = folder.join(&name);
+                std::fs::create_dir_all(&folder).map_err(|e| dir_error(&folder, e))?;
+                r.model().save(&path).map_err(|e| dir_error(&path, e))?;
+                Ok(name)
+            })
+            .transpose()?;
+        let checkpoint = Checkpoint {
+            state: state.clone(),
+            labels: recognizer.map(|r| r.labels().clone()),
+            model: model.clone(),
+        };
+        let text = serde_json::to_string(&checkpoint).map_err(|e| dir_error(&self.dir, e))?;
+        write_in(&self.dir, PROGRESS_FILE, text.as_bytes())?;
+        // Earlier models are no longer named.
+        if let (Some(keep), Ok(entries)) = (&model, std::fs::read_dir(&folder)) {
+            for entry in entries.flatten() {
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if name.starts_with("model-") && &name != keep {
+                    let _ = std::fs::remove_file(entry.path());
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -170,6 +331,11 @@ mod tests {
             ("rounds/holiday.jpg", false, Entry::Foreign),
             ("rounds/round-0003.mcap", true, Entry::Foreign),
             ("rounds", false, Entry::Foreign),
+            ("job.json", false, Entry::Ours),
+            ("progress.json", false, Entry::Ours),
+            ("progress", true, Entry::Folder),
+            ("progress/model-0003.lgdm", false, Entry::Ours),
+            ("progress/notes.txt", false, Entry::Foreign),
             ("thesis.tex", false, Entry::Foreign),
             ("results.json", true, Entry::Foreign),
         ] {

@@ -44,13 +44,14 @@ use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
-use crate::arrival::ArrivalRun;
+use crate::arrival::{ArrivalRun, Evaluation};
 use crate::attempt::{AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp};
 use crate::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
 use crate::packing::BasketChoice;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
-use crate::recognize::{MemoryPoint, RecognitionRecord, Recognizer};
+use crate::recognize::{MemoryPoint, RecognitionRecord, Recognizer, RecognizerState};
 use crate::results::{
     AttemptRecord, GraspRecord, PoseRecord, RESULTS_FORMAT_VERSION, RecognitionRun, RoundEnd,
     RoundRecord, RunInfo, RunResults, RunWall, summarize,
@@ -72,7 +73,18 @@ pub fn run_trials(
     observer: &mut dyn RunObserver,
     on_progress: impl FnMut(Progress),
 ) -> Result<RunResults, SimError> {
-    play(spec, library, None, source, None, observer, on_progress)
+    let nothing = &mut |_: &RunState, _: Option<&Recognizer>| Ok(());
+    play(
+        spec,
+        library,
+        None,
+        source,
+        None,
+        observer,
+        on_progress,
+        None,
+        nothing,
+    )
 }
 
 /// Pick-and-place with lifelong recognition: rounds as [`run_trials`] plays them, where before
@@ -87,14 +99,18 @@ pub fn run_pick_place(
     observer: &mut dyn RunObserver,
     on_progress: impl FnMut(Progress),
 ) -> Result<RunResults, SimError> {
+    let recognizer = Some(recognizer);
+    let nothing = &mut |_: &RunState, _: Option<&Recognizer>| Ok(());
     play(
         spec,
         library,
         None,
         source,
-        Some(recognizer),
+        recognizer,
         observer,
         on_progress,
+        None,
+        nothing,
     )
 }
 
@@ -736,7 +752,40 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
     }
 }
 
-/// Plays the run; `shapes` from [`prepare_shapes`] (prepared here when `None`).
+/// Where a run is after its finished rounds: everything the rest of it depends on besides the
+/// recognizer's model (saved beside it). A job writes it after every round
+/// ([`crate::run_dir::PROGRESS_FILE`]) and resumes from it: the resumed run's results, model and
+/// recordings equal those of a run that was never stopped.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunState {
+    /// Rounds finished.
+    pub rounds_done: usize,
+    /// Their attempts.
+    pub attempts: Vec<AttemptRecord>,
+    /// Their records.
+    pub rounds: Vec<RoundRecord>,
+    /// Node counts at the start and after each round (with recognition).
+    pub memory: Vec<MemoryPoint>,
+    /// The recognizer beyond its model (with recognition).
+    pub recognizer: Option<RecognizerState>,
+    /// The grasp source's state, when it has one ([`GraspSource::state`]).
+    pub source: Option<serde_json::Value>,
+    /// Categories arriving over time: the evaluation when the late ones arrived, once made.
+    pub at_switch: Option<Evaluation>,
+    /// Simulated seconds of the finished rounds.
+    pub sim_s: f64,
+    /// Wall seconds so far (not deterministic): setting tables, replay, evaluations.
+    pub wall: RunWall,
+}
+
+/// Called after every round with the run's state and the recognizer (whose model goes with it).
+pub(crate) type Checkpoint<'a> =
+    &'a mut dyn FnMut(&RunState, Option<&Recognizer>) -> Result<(), SimError>;
+
+/// Plays the run; `shapes` from [`prepare_shapes`] (prepared here when `None`); from `resume`
+/// on (the state after its finished rounds; `source` and `recognizer` built as for the run it
+/// continues, the recognizer already restored), calling `checkpoint` after every round.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn play(
     spec: &RunSpec,
     library: &[ObjectModel],
@@ -745,6 +794,8 @@ pub(crate) fn play(
     recognizer: Option<&mut Recognizer>,
     observer: &mut dyn RunObserver,
     on_progress: impl FnMut(Progress),
+    resume: Option<RunState>,
+    checkpoint: Checkpoint<'_>,
 ) -> Result<RunResults, SimError> {
     let start = Instant::now();
     let labels = recognizer.as_deref().map(Recognizer::labels);
@@ -775,8 +826,24 @@ pub(crate) fn play(
         recognised: Vec::new(),
     };
     let mut rounds = Vec::with_capacity(playable_rounds(spec));
-    let (mut setup_s, mut sim_s) = (0.0, 0.0);
-    for r in 0..spec.rounds {
+    let (mut setup_s, mut sim_s, mut evaluation_before) = (0.0, 0.0, 0.0);
+    if let Some(state) = resume {
+        if let Some(s) = &state.source {
+            runner.source.restore(s)?;
+        }
+        if let Some(a) = &mut arrival {
+            a.restore(state.at_switch.clone());
+        }
+        runner.attempts = state.attempts;
+        runner.memory = state.memory;
+        runner.rounds_done = state.rounds_done;
+        runner.replay_s = state.wall.replay_s;
+        rounds = state.rounds;
+        setup_s = state.wall.setup_s;
+        sim_s = state.sim_s;
+        evaluation_before = state.wall.evaluation_s;
+    }
+    for r in runner.rounds_done..spec.rounds {
         if runner.budget_spent() {
             break;
         }
@@ -788,12 +855,29 @@ pub(crate) fn play(
         sim_s += record.sim_time_s;
         rounds.push(record);
         runner.rounds_done = r + 1;
+        let state = RunState {
+            rounds_done: runner.rounds_done,
+            attempts: runner.attempts.clone(),
+            rounds: rounds.clone(),
+            memory: runner.memory.clone(),
+            recognizer: runner.recognizer.as_deref().map(Recognizer::state),
+            source: runner.source.state(),
+            at_switch: arrival.as_ref().and_then(|a| a.at_switch().cloned()),
+            sim_s,
+            wall: RunWall {
+                setup_s,
+                replay_s: runner.replay_s,
+                evaluation_s: evaluation_before + arrival.as_ref().map_or(0.0, |a| a.evaluation_s),
+                ..RunWall::default()
+            },
+        };
+        checkpoint(&state, runner.recognizer.as_deref())?;
         runner.progress();
     }
     let (arrival_evaluation, evaluation_s) = match (arrival, runner.recognizer.as_deref_mut()) {
         (Some(a), Some(r)) => {
             let (e, s) = a.finish(r, rounds.len())?;
-            (Some(e), s)
+            (Some(e), evaluation_before + s)
         }
         _ => (None, 0.0),
     };

@@ -73,6 +73,9 @@ pub enum SourceError {
     /// The analytic search failed.
     #[error("analytic grasps: {0}")]
     Analytic(#[from] AnalyticError),
+    /// A saved state that is not this source's ([`GraspSource::restore`]).
+    #[error("cannot restore the source's state: {0}")]
+    State(String),
     /// The crop is malformed (buffer sizes, non-finite fields).
     #[error("bad crop: {0}")]
     BadCrop(String),
@@ -99,6 +102,17 @@ pub trait GraspSource {
         query: &GraspQuery<'_>,
         k: usize,
     ) -> Result<Vec<DecodedGrasp>, SourceError>;
+
+    /// The source's state between rounds, when it has one that later grasps depend on (a
+    /// random stream's position), for a run that is resumed ([`GraspSource::restore`]).
+    fn state(&self) -> Option<serde_json::Value> {
+        None
+    }
+
+    /// Continues from a [`GraspSource::state`] of a source built the same way.
+    fn restore(&mut self, _state: &serde_json::Value) -> Result<(), SourceError> {
+        Ok(())
+    }
 
     /// What a run records about the source beside its name (e.g. the network's checkpoint);
     /// the name by default.
@@ -210,6 +224,19 @@ fn check_crop(crop: &ObjectCrop) -> Result<(), SourceError> {
 impl GraspSource for RandomSource {
     fn name(&self) -> &str {
         "random"
+    }
+
+    fn state(&self) -> Option<serde_json::Value> {
+        Some(serde_json::json!({ "word_pos": self.rng.get_word_pos().to_string() }))
+    }
+
+    fn restore(&mut self, state: &serde_json::Value) -> Result<(), SourceError> {
+        let pos = state["word_pos"]
+            .as_str()
+            .and_then(|s| s.parse::<u128>().ok())
+            .ok_or_else(|| SourceError::State(format!("not a random source's state: {state}")))?;
+        self.rng.set_word_pos(pos);
+        Ok(())
     }
 
     fn grasps(

@@ -5,7 +5,5 @@ pub mod features;
 pub mod gen_dataset;
 pub mod info;
 pub mod merge;
-// Until `sim::print_end` prints through `crate::output::outln!` (a closed stdout panics there).
-#[allow(clippy::print_stdout)]
 pub mod sim;
 pub mod train;

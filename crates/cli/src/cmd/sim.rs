@@ -15,6 +15,7 @@
 //! `--record-rounds N`) for Foxglove: `rounds/round-NNNN.{mcap,png}`. Every input is checked
 //! by the library before the run directory is touched.
 
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -22,7 +23,8 @@ use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::config::SimConfig;
 use lgdm_sim::job::{
-    GraspJob, GraspSetup, ObjectLibrary, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
+    GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
+    PickPlaceSetup,
 };
 use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
 use lgdm_sim::record::RecordConfig;
@@ -34,6 +36,7 @@ use lgdm_sim::source::GraspSource;
 use lgdm_sim::spec::{SimError, builtin_source};
 
 use crate::data::Encoder;
+use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
 mod args;
@@ -71,18 +74,19 @@ and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && 
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
 LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
 
-/// The grasp source of `args`, loaded once for the whole run. `ae_encoder`: whether
-/// recognition uses the autoencoder (then `--ae-checkpoint` applies without `--grasp
-/// network`); `None` for commands without recognition.
+/// The grasp source `grasp`, loaded once for the whole run. `ae_encoder`: whether recognition
+/// uses the autoencoder (then `--ae-checkpoint` applies without `--grasp network`); `None` for
+/// commands without recognition.
 fn source(
-    args: &RobotArgs,
+    grasp: GraspArg,
+    ae_checkpoint: Option<&Path>,
     seed: u64,
     ae_encoder: Option<bool>,
     reporter: &Reporter,
 ) -> Result<Box<dyn GraspSource>> {
     if let (Some(p), false) = (
-        &args.ae_checkpoint,
-        args.grasp == GraspArg::Network || ae_encoder == Some(true),
+        ae_checkpoint,
+        grasp == GraspArg::Network || ae_encoder == Some(true),
     ) {
         let also = if ae_encoder.is_some() {
             " and --encoder ae"
@@ -94,10 +98,10 @@ fn source(
             p.display()
         );
     }
-    match args.grasp {
+    match grasp {
         GraspArg::Analytic => Ok(builtin_source("analytic", seed)?),
         GraspArg::Random => Ok(builtin_source("random", seed)?),
-        GraspArg::Network => network_source(args.ae_checkpoint.as_deref(), reporter),
+        GraspArg::Network => network_source(ae_checkpoint, reporter),
     }
 }
 
@@ -122,11 +126,15 @@ fn network_source(
     Ok(Box::new(source))
 }
 
-/// The view encoder of `--encoder`.
-fn view_encoder(args: &PickPlaceArgs, reporter: &Reporter) -> Result<Box<dyn ViewEncoder>> {
-    match args.encoder {
-        Encoder::Good => Ok(Box::new(GoodEncoder)),
-        Encoder::Ae => ae_view_encoder(args.robot.ae_checkpoint.as_deref(), reporter),
+/// The view encoder: GOOD, or with `ae` the autoencoder (from `checkpoint`).
+fn view_encoder(
+    ae: bool,
+    checkpoint: Option<&Path>,
+    reporter: &Reporter,
+) -> Result<Box<dyn ViewEncoder>> {
+    match ae {
+        false => Ok(Box::new(GoodEncoder)),
+        true => ae_view_encoder(checkpoint, reporter),
     }
 }
 
@@ -203,45 +211,87 @@ fn record_config(args: &RobotArgs) -> Option<RecordConfig> {
 }
 
 fn output(args: &RobotArgs) -> Option<Output> {
-    Some(Output {
-        dir: args.out.clone(),
+    args.out.clone().map(|dir| Output {
+        dir,
         force: args.force,
     })
+}
+
+/// The grasp source a resumed run's record names.
+fn recorded_grasp(name: &str) -> Result<GraspArg> {
+    match name {
+        "analytic" => Ok(GraspArg::Analytic),
+        "random" => Ok(GraspArg::Random),
+        "network" => Ok(GraspArg::Network),
+        other => bail!("the run's record names an unknown grasp source `{other}`"),
+    }
+}
+
+/// The job record of the run `--resume` names, with its setup pointed at that directory.
+fn resumed(dir: &Path) -> Result<(JobRecord, Output)> {
+    let record = JobRecord::read(dir).map_err(cli_error)?;
+    Ok((record, Output::new(dir)))
 }
 
 fn grasp(args: GraspArgs) -> Result<()> {
     let robot = &args.robot;
     let reporter = Reporter::new(robot.progress);
-    let procedural = ObjectSource::Procedural {
-        instances: args.instances,
-        seed: args.seed,
+    let (setup, grasp, resume) = match &args.resume {
+        Some(dir) => {
+            let (record, out) = resumed(dir)?;
+            let JobKind::Grasp(mut setup) = record.job else {
+                bail!(
+                    "{} is a pick-place or packing run: resume it with that command",
+                    dir.display()
+                );
+            };
+            setup.out = Some(out);
+            (*setup, recorded_grasp(&record.grasp_source)?, true)
+        }
+        None => {
+            let procedural = ObjectSource::Procedural {
+                instances: args.instances,
+                seed: args.seed,
+            };
+            let setup = GraspSetup {
+                scenario: args.scenario.into(),
+                rounds: args.rounds,
+                seed: args.seed,
+                objects: Some(objects(robot, procedural)?),
+                config: sim_config(robot),
+                record: record_config(robot),
+                out: output(robot),
+                ae_checkpoint: robot.ae_checkpoint.clone(),
+            };
+            (setup, robot.grasp, false)
+        }
     };
-    let setup = GraspSetup {
-        scenario: args.scenario.into(),
-        rounds: args.rounds,
-        seed: args.seed,
-        objects: Some(objects(robot, procedural)?),
-        config: sim_config(robot),
-        record: record_config(robot),
-        out: output(robot),
-    };
+    let out = setup
+        .out
+        .as_ref()
+        .map(|o| o.dir.clone())
+        .unwrap_or_default();
+    let (seed, rounds, recorded) = (setup.seed, setup.rounds, setup.record.is_some());
+    let checkpoint = setup.ae_checkpoint.clone();
     let job = GraspJob::prepare(setup).map_err(cli_error)?;
     report_meshes(job.library(), &reporter);
-    let mut source = source(robot, args.seed, None, &reporter)?;
+    let mut source = source(grasp, checkpoint.as_deref(), seed, None, &reporter)?;
     let started = Instant::now();
-    let mut task = reporter.bar("sim grasp", args.rounds as u64);
-    let results = job.run(source.as_mut(), |p| {
-        task.update_coarse(p.stage, p.done, p.total)
-    });
+    let mut task = reporter.bar("sim grasp", rounds as u64);
+    let progress = |p: lgdm_pointcloud::Progress| task.update_coarse(p.stage, p.done, p.total);
+    let results = match resume {
+        true => job.resume(source.as_mut(), progress),
+        false => job.run(source.as_mut(), progress),
+    };
     task.finish();
     let results = results
         .map_err(cli_error)
         .context("running the grasp trials")?;
-    write_plots(&robot.out, &results).context("drawing the plots")?;
+    write_plots(&out, &results).context("drawing the plots")?;
     let s = &results.summary;
     reporter.event(&serde_json::json!({
         "event": "done",
-        "out": robot.out.display().to_string(),
+        "out": out.display().to_string(),
         "attempts": s.attempts,
         "grasp_success_rate": s.grasp_success_rate.value,
         "placement_success_rate": s.placement_success_rate.value,
@@ -249,19 +299,97 @@ fn grasp(args: GraspArgs) -> Result<()> {
         "contact_only_success_rate": s.contact_only_success_rate.value,
         "seconds": started.elapsed().as_secs_f64(),
     }));
-    print_end(robot, &results);
-    Ok(())
+    print_end(robot.progress, &out, recorded, &results)
 }
 
 /// `sim pick-place`, or with `targets` `sim packing`: one job, one set of options.
 fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<()> {
-    let command = if targets.is_some() {
+    let packing = targets.is_some();
+    let command = if packing {
         "sim packing"
     } else {
         "sim pick-place"
     };
     let robot = &args.robot;
     let reporter = Reporter::new(robot.progress);
+    let (setup, grasp, resume) = match &args.resume {
+        Some(dir) => {
+            let (record, out) = resumed(dir)?;
+            let JobKind::PickPlace(mut setup) = record.job else {
+                bail!(
+                    "{} is a sim grasp run: resume it with `lgdm sim grasp --resume`",
+                    dir.display()
+                );
+            };
+            if setup.targets.is_some() != packing {
+                let other = if packing { "pick-place" } else { "packing" };
+                bail!(
+                    "{} is a {other} run: resume it with `lgdm sim {other} --resume`",
+                    dir.display()
+                );
+            }
+            setup.out = Some(out);
+            (*setup, recorded_grasp(&record.grasp_source)?, true)
+        }
+        None => (new_pick_place(&args, targets)?, robot.grasp, false),
+    };
+    let out = setup
+        .out
+        .as_ref()
+        .map(|o| o.dir.clone())
+        .unwrap_or_default();
+    let (seed, attempts, recorded) = (setup.seed, setup.attempts, setup.record.is_some());
+    let checkpoint = setup.ae_checkpoint.clone();
+    let encoder_name = setup.encoder.0.clone();
+    let job = PickPlaceJob::prepare(setup).map_err(cli_error)?;
+    report_meshes(job.library(), &reporter);
+    for note in job.notes() {
+        reporter.message(note);
+    }
+    let ae_encoder = encoder_name == Encoder::Ae.name();
+    let mut source = source(
+        grasp,
+        checkpoint.as_deref(),
+        seed,
+        Some(ae_encoder),
+        &reporter,
+    )?;
+    let encoder = view_encoder(ae_encoder, checkpoint.as_deref(), &reporter)?;
+    let started = Instant::now();
+    let total = attempts.unwrap_or(job.spec().rounds) as u64;
+    let mut task = reporter.bar(command, total);
+    let progress = |p: lgdm_pointcloud::Progress| task.update_coarse(p.stage, p.done, p.total);
+    let results = match resume {
+        true => job.resume(source.as_mut(), encoder, progress),
+        false => job.run(source.as_mut(), encoder, progress),
+    };
+    task.finish();
+    let results = results
+        .map_err(cli_error)
+        .with_context(|| format!("running {command}"))?;
+    write_plots(&out, &results).context("drawing the plots")?;
+    write_learning_plots(&out, &results).context("drawing the learning curve")?;
+    write_packing_plots(&out, &results).context("drawing the packing plots")?;
+    let s = &results.summary;
+    reporter.event(&serde_json::json!({
+        "event": "done",
+        "out": out.display().to_string(),
+        "attempts": s.attempts,
+        "recognition_accuracy": s.recognition_accuracy.and_then(|r| r.value),
+        "teacher_interventions": s.teacher_interventions,
+        "grasp_success_rate": s.grasp_success_rate.value,
+        "placement_success_rate": s.placement_success_rate.value,
+        "cleared_fraction": s.cleared_fraction.value,
+        "packing_success_rate": s.packing.as_ref().and_then(|p| p.success_rate.value),
+        "early_category_accuracy_at_end": s.early_category_accuracy_at_end.and_then(|r| r.value),
+        "seconds": started.elapsed().as_secs_f64(),
+    }));
+    print_end(robot.progress, &out, recorded, &results)
+}
+
+/// The setup of a new pick-place or packing run from its options.
+fn new_pick_place(args: &PickPlaceArgs, targets: Option<Vec<String>>) -> Result<PickPlaceSetup> {
+    let robot = &args.robot;
     let procedural = ObjectSource::Procedural {
         instances: 5,
         seed: args.object_seed,
@@ -270,7 +398,7 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
         Encoder::Good => GoodEncoder.dim(),
         Encoder::Ae => crate::data::ae::FEATURE_DIM,
     };
-    let setup = PickPlaceSetup {
+    Ok(PickPlaceSetup {
         scenario: args.scenario.into(),
         rounds: args.rounds,
         attempts: args.attempts,
@@ -290,60 +418,28 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
         config: sim_config(robot),
         record: record_config(robot),
         out: output(robot),
-    };
-    let job = PickPlaceJob::prepare(setup).map_err(cli_error)?;
-    report_meshes(job.library(), &reporter);
-    for note in job.notes() {
-        reporter.message(note);
-    }
-    let ae_encoder = args.encoder == Encoder::Ae;
-    let mut source = source(robot, args.seed, Some(ae_encoder), &reporter)?;
-    let encoder = view_encoder(&args, &reporter)?;
-    let started = Instant::now();
-    let total = args.attempts.unwrap_or(job.spec().rounds) as u64;
-    let mut task = reporter.bar(command, total);
-    let results = job.run(source.as_mut(), encoder, |p| {
-        task.update_coarse(p.stage, p.done, p.total)
-    });
-    task.finish();
-    let results = results
-        .map_err(cli_error)
-        .with_context(|| format!("running {command}"))?;
-    let out = &robot.out;
-    write_plots(out, &results).context("drawing the plots")?;
-    write_learning_plots(out, &results).context("drawing the learning curve")?;
-    write_packing_plots(out, &results).context("drawing the packing plots")?;
-    let s = &results.summary;
-    reporter.event(&serde_json::json!({
-        "event": "done",
-        "out": out.display().to_string(),
-        "attempts": s.attempts,
-        "recognition_accuracy": s.recognition_accuracy.and_then(|r| r.value),
-        "teacher_interventions": s.teacher_interventions,
-        "grasp_success_rate": s.grasp_success_rate.value,
-        "placement_success_rate": s.placement_success_rate.value,
-        "cleared_fraction": s.cleared_fraction.value,
-        "packing_success_rate": s.packing.as_ref().and_then(|p| p.success_rate.value),
-        "early_category_accuracy_at_end": s.early_category_accuracy_at_end.and_then(|r| r.value),
-        "seconds": started.elapsed().as_secs_f64(),
-    }));
-    print_end(robot, &results);
-    Ok(())
+        ae_checkpoint: robot.ae_checkpoint.clone(),
+    })
 }
 
 /// The end of a run on the terminal (not with `--progress jsonl`): the summary, where the
-/// recorded rounds are, the run directory.
-fn print_end(robot: &RobotArgs, results: &RunResults) {
-    if robot.progress == ProgressMode::Jsonl {
-        return;
+/// recorded rounds are, the run directory. A closed stdout ends it (`StdoutClosed`).
+fn print_end(
+    progress: ProgressMode,
+    out: &Path,
+    recorded: bool,
+    results: &RunResults,
+) -> Result<()> {
+    if progress == ProgressMode::Jsonl {
+        return Ok(());
     }
-    println!("{}", summary_text(results));
-    if record_config(robot).is_some() {
-        let rounds = robot.out.join(ROUNDS_DIR);
-        println!(
+    outln!("{}", summary_text(results))?;
+    if recorded {
+        let rounds = out.join(ROUNDS_DIR);
+        outln!(
             "recorded rounds (MCAP for Foxglove, PNG storyboards) in {}",
             rounds.display()
-        );
+        )?;
     }
-    println!("wrote {}", robot.out.display());
+    outln!("wrote {}", out.display())
 }

@@ -9,6 +9,65 @@ use lgdm_sim::scenario::Scenario;
 use crate::data::Encoder;
 use crate::progress::ProgressMode;
 
+/// The options of every robot run that describe it: none of them may accompany `--resume`
+/// (the run's job.json holds them).
+const ROBOT_FLAGS: [&str; 10] = [
+    "grasp",
+    "out",
+    "force",
+    "meshes",
+    "units",
+    "draw",
+    "shapes",
+    "record",
+    "record_rounds",
+    "ae_checkpoint",
+];
+
+/// [`ROBOT_FLAGS`] and `sim grasp`'s own.
+const GRASP_FLAGS: [&str; 14] = [
+    ROBOT_FLAGS[0],
+    ROBOT_FLAGS[1],
+    ROBOT_FLAGS[2],
+    ROBOT_FLAGS[3],
+    ROBOT_FLAGS[4],
+    ROBOT_FLAGS[5],
+    ROBOT_FLAGS[6],
+    ROBOT_FLAGS[7],
+    ROBOT_FLAGS[8],
+    ROBOT_FLAGS[9],
+    "scenario",
+    "rounds",
+    "seed",
+    "instances",
+];
+
+/// [`ROBOT_FLAGS`] and `sim pick-place`'s own (packing's `--targets` conflicts on its own).
+const PICK_PLACE_FLAGS: [&str; 22] = [
+    ROBOT_FLAGS[0],
+    ROBOT_FLAGS[1],
+    ROBOT_FLAGS[2],
+    ROBOT_FLAGS[3],
+    ROBOT_FLAGS[4],
+    ROBOT_FLAGS[5],
+    ROBOT_FLAGS[6],
+    ROBOT_FLAGS[7],
+    ROBOT_FLAGS[8],
+    ROBOT_FLAGS[9],
+    "scenario",
+    "rounds",
+    "attempts",
+    "seed",
+    "objects",
+    "object_seed",
+    "model",
+    "no_replay",
+    "learn_always",
+    "encoder",
+    "confidence",
+    "arrive_after",
+];
+
 /// Arguments of `lgdm sim`.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
@@ -94,10 +153,10 @@ pub struct RobotArgs {
     #[arg(long, value_enum, default_value_t = GraspArg::Analytic)]
     pub grasp: GraspArg,
     /// Run directory, new or empty: results.json, summary.txt, plots.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "resume")]
+    pub out: Option<PathBuf>,
     /// Replace the sim run already in `--out` (its files are removed first).
-    #[arg(long)]
+    #[arg(long, requires = "out")]
     pub force: bool,
     /// Use meshes from <DIR>/<category>/<instance>.{obj,stl,ply} instead of procedural objects.
     #[arg(long, value_name = "DIR")]
@@ -140,9 +199,14 @@ pub struct GraspArgs {
     /// Base seed: object poses, clutter draws, the random source and the procedural instances.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Procedural instances per category (default 5: 50 objects).
+    /// Procedural instances per category (default 5: 50 objects; at most 100).
     #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
     pub instances: usize,
+    /// Finish the interrupted run in this directory with its own settings (its job.json): the
+    /// rounds it finished are kept, the rest are played; the result is what an uninterrupted
+    /// run gives.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = GRASP_FLAGS)]
+    pub resume: Option<PathBuf>,
     /// Source, objects, output, recording.
     #[command(flatten)]
     pub robot: RobotArgs,
@@ -191,6 +255,11 @@ pub struct PickPlaceArgs {
     /// Below this share of agreeing views the robot says "I don't know this" (0..=1).
     #[arg(long, default_value_t = 0.6)]
     pub confidence: f64,
+    /// Finish the interrupted run in this directory with its own settings (its job.json): the
+    /// rounds it finished are kept, the rest are played; the result is what an uninterrupted
+    /// run gives.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = PICK_PLACE_FLAGS)]
+    pub resume: Option<PathBuf>,
     /// Categories arrive over time: rounds before K show only the first half of the object
     /// set's categories, rounds from K on only the rest; at the end, the model's first guess
     /// about every object from fresh views, no teacher (results.json:
@@ -210,7 +279,8 @@ pub struct PackingArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        required = true,
+        required_unless_present = "resume",
+        conflicts_with = "resume",
         value_name = "CATEGORIES"
     )]
     pub targets: Vec<String>,
