@@ -622,3 +622,72 @@ fn categories_arriving_over_time_end_with_the_early_categories_evaluated() {
     );
     assert!(!bad.exists());
 }
+
+/// `--resume`: a pick-place run killed (SIGKILL) once its first round is checkpointed is
+/// finished by `lgdm sim pick-place --resume` from its job.json alone, and ends as a run never
+/// stopped — results without wall times, the model and the recorded rounds byte for byte. The
+/// assertions hold wherever the kill lands (if the run had already ended, there is nothing to
+/// resume and that is said).
+#[test]
+fn a_killed_pick_place_run_resumes_to_the_straight_run() {
+    let root = work_dir().join("resume");
+    let _ = std::fs::remove_dir_all(&root);
+    let (straight, killed) = (root.join("straight"), root.join("killed"));
+    let args = ["--rounds", "3", "--seed", "1", "--objects", "5", "--record"];
+    check(pick_place(&straight, &args), "pick-place, straight");
+    let mut child = lgdm(&work_dir().join("cache"))
+        .args(["sim", "pick-place", "--progress", "none"])
+        .args(args)
+        .arg("--out")
+        .arg(&killed)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    while !killed.join("progress.json").is_file() && !killed.join("results.json").is_file() {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let finished = killed.join("results.json").is_file();
+    // No option but --resume (and --progress) describes the run: the rest is refused.
+    let e = lgdm(&work_dir().join("cache"))
+        .args(["sim", "pick-place", "--rounds", "2", "--resume"])
+        .arg(&killed)
+        .output()
+        .unwrap();
+    assert!(
+        !e.status.success() && stderr(&e).contains("--rounds"),
+        "{}",
+        stderr(&e)
+    );
+    let resumed = lgdm(&work_dir().join("cache"))
+        .args(["sim", "pick-place", "--progress", "none", "--resume"])
+        .arg(&killed)
+        .output()
+        .unwrap();
+    if finished {
+        assert!(
+            stderr(&resumed).contains("nothing to resume"),
+            "{}",
+            stderr(&resumed)
+        );
+    } else {
+        check(resumed, "pick-place --resume");
+    }
+    assert_eq!(
+        without_wall(&read_results(&straight)),
+        without_wall(&read_results(&killed))
+    );
+    for file in [
+        "model.lgdm",
+        "model.json",
+        "rounds/round-0000.mcap",
+        "rounds/round-0001.mcap",
+        "rounds/round-0002.mcap",
+    ] {
+        let read = |d: &Path| std::fs::read(d.join(file)).unwrap();
+        assert!(read(&straight) == read(&killed), "{file} differs");
+    }
+    assert!(!killed.join("progress.json").exists() && !killed.join("progress").exists());
+}
