@@ -109,7 +109,8 @@ fn classify(name: &str, is_dir: bool) -> Entry {
 /// The ownership policy of sim run directories.
 const OWNERSHIP: Ownership<'static> = Ownership {
     kind: "an lgdm sim run",
-    occupied: "holds another run; choose another directory or pass --force to replace it",
+    occupied: "holds another run; choose another directory, pass --force to replace it, or \
+               --resume to finish an interrupted one",
     classify: &classify,
 };
 
