@@ -132,6 +132,75 @@ impl Mesh {
             .sum()
     }
 
+    /// The mesh simplified by vertex clustering on a grid of cubes `cell_m` wide (anchored at the
+    /// mesh's lower bounds): the vertices of one cube merge into their mean, triangles whose
+    /// corners fall into fewer than three cubes are dropped, and so are repeats of a triangle
+    /// (the same three cubes; the first is kept, with its colour). Every vertex moves by less
+    /// than a cube's diagonal, so the result's hull is within `√3·cell_m` of the mesh's.
+    /// Deterministic: clusters are numbered in the order of their first vertex. A `cell_m` that
+    /// is not positive and finite returns a copy.
+    ///
+    /// ```
+    /// use lgdm_pointcloud::mesh::Mesh;
+    /// let fine = Mesh::lathe(&[[0.0, 0.0], [0.04, 0.0], [0.04, 0.1], [0.0, 0.1]], 720, [9; 3]);
+    /// let coarse = fine.clustered(0.002);
+    /// assert!(coarse.len() < fine.len() / 4);
+    /// let (lo, hi) = coarse.bounds().unwrap();
+    /// assert!(hi[2] > 0.098 && lo[2] < 0.002 && hi[0] > 0.038);
+    /// ```
+    pub fn clustered(&self, cell_m: f32) -> Mesh {
+        let Some((lo, _)) = self.bounds() else {
+            return self.clone();
+        };
+        if !(cell_m.is_finite() && cell_m > 0.0) {
+            return self.clone();
+        }
+        let mut cluster_of_cell: std::collections::HashMap<[i64; 3], u32> =
+            std::collections::HashMap::new();
+        let mut sums: Vec<[f64; 3]> = Vec::new();
+        let mut counts: Vec<u32> = Vec::new();
+        let cluster: Vec<u32> = self
+            .vertices
+            .iter()
+            .map(|v| {
+                let cell = [0, 1, 2].map(|k| ((v[k] - lo[k]) / cell_m).floor() as i64);
+                let id = *cluster_of_cell.entry(cell).or_insert_with(|| {
+                    sums.push([0.0; 3]);
+                    counts.push(0);
+                    (sums.len() - 1) as u32
+                });
+                let sum = &mut sums[id as usize];
+                for k in 0..3 {
+                    sum[k] += f64::from(v[k]);
+                }
+                counts[id as usize] += 1;
+                id
+            })
+            .collect();
+        let mut seen: std::collections::HashSet<[u32; 3]> = std::collections::HashSet::new();
+        let mut out = Mesh {
+            vertices: sums
+                .iter()
+                .zip(&counts)
+                .map(|(s, &n)| s.map(|c| (c / f64::from(n)) as f32))
+                .collect(),
+            ..Mesh::default()
+        };
+        for (t, color) in self.triangles.iter().zip(&self.colors) {
+            let ids = t.map(|i| cluster[i as usize]);
+            if ids[0] == ids[1] || ids[1] == ids[2] || ids[0] == ids[2] {
+                continue;
+            }
+            let mut key = ids;
+            key.sort_unstable();
+            if seen.insert(key) {
+                out.triangles.push(ids);
+                out.colors.push(*color);
+            }
+        }
+        out
+    }
+
     /// First hit of the ray `origin + t·dir` (dir normalised here) with `t` in `(0, t_max]`,
     /// Möller–Trumbore on every triangle (both faces count).
     pub fn raycast(&self, origin: [f32; 3], dir: [f32; 3], t_max: f32) -> Option<RayHit> {
