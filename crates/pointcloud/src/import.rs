@@ -1,8 +1,9 @@
 //! Import of user meshes from `<dir>/<category>/<instance>.{obj,stl,ply}`.
 //!
-//! Each mesh is checked (non-empty, finite, indices in range), converted to metres, centred on
-//! the z axis and rested on z = 0 (z is up). Anything broken or empty gives a
-//! [`MeshImportError`] naming the file.
+//! Each mesh is checked (non-empty, finite, indices in range, at most [`MAX_MESH_TRIANGLES`]
+//! triangles and [`MAX_MESH_VERTICES`] vertices), converted to metres, centred on the z axis and
+//! rested on z = 0 (z is up). Anything broken, empty or too big gives a [`MeshImportError`]
+//! naming the file.
 //!
 //! Units: a mesh file has no unit, so it is either given ([`MeshUnits`]: one unit for every
 //! file and/or one per file) or guessed from the size: the guess is the unit in which the
@@ -40,6 +41,16 @@ pub const MIN_OBJECT_EXTENT_MM: f64 = 20.0;
 /// Upper limit of a plausible household object's largest extent, millimetres (600 mm; the
 /// default turntable camera sees about 0.6 m top to bottom).
 pub const MAX_OBJECT_EXTENT_MM: f64 = 600.0;
+
+/// Most triangles a mesh file may have (10,000,000). Real scans of household objects have up
+/// to a few million, and dense meshes are simplified before the physics uses them
+/// (`lgdm_sim::hull`, `lgdm_sim::shapes`); loading a 2-million-triangle STL peaks at 145 MB, so
+/// one of 10 million would take about 0.7 GB. A binary STL or a PLY says its size in its header
+/// and is refused before it is read; an OBJ after.
+pub const MAX_MESH_TRIANGLES: usize = 10_000_000;
+
+/// Most vertices a mesh file may have (10,000,000; see [`MAX_MESH_TRIANGLES`]).
+pub const MAX_MESH_VERTICES: usize = 10_000_000;
 
 /// A mesh file (or directory) that could not be imported.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -520,6 +531,7 @@ fn import_mesh(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
+    check_declared_size(path, ext.as_deref())?;
     let mut mesh = match ext.as_deref() {
         Some("obj") => load_obj(path)?,
         Some("stl") => load_stl(path)?,
@@ -581,10 +593,99 @@ fn import_mesh(
     ))
 }
 
-/// Checks that a mesh has triangles, finite vertices and in-range indices.
+/// The error for a mesh of `count` `what`s, more than `limit`.
+fn too_big(path: &Path, count: usize, what: &str, limit: usize) -> MeshImportError {
+    fail(
+        path,
+        format!(
+            "{count} {what}, more than the {limit} a mesh may have (simplify it first, e.g. \
+             decimate it in MeshLab or Blender)"
+        ),
+    )
+}
+
+/// Refuses a binary STL or a PLY whose header declares more than [`MAX_MESH_TRIANGLES`]
+/// triangles or [`MAX_MESH_VERTICES`] vertices, before the file is read; anything it cannot
+/// tell from the header is left to [`check_mesh`].
+fn check_declared_size(path: &Path, ext: Option<&str>) -> Result<(), MeshImportError> {
+    use std::io::{BufRead, Read};
+    let Ok(file) = File::open(path) else {
+        return Ok(()); // the loader reports it
+    };
+    match ext {
+        Some("stl") => {
+            let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+            let mut header = [0u8; 84];
+            if (&file).read_exact(&mut header).is_err() {
+                return Ok(());
+            }
+            let count = u64::from(u32::from_le_bytes([
+                header[80], header[81], header[82], header[83],
+            ]));
+            // A binary STL is exactly 84 bytes and 50 a triangle; anything else is ASCII.
+            if len == 84 + 50 * count && count > MAX_MESH_TRIANGLES as u64 {
+                return Err(too_big(
+                    path,
+                    count as usize,
+                    "triangles",
+                    MAX_MESH_TRIANGLES,
+                ));
+            }
+        }
+        Some("ply") => {
+            let reader = BufReader::new(file);
+            for line in reader.split(b'\n').take(1000) {
+                let Ok(line) = line else {
+                    break;
+                };
+                let line = String::from_utf8_lossy(&line);
+                let words: Vec<&str> = line.split_whitespace().collect();
+                match words[..] {
+                    ["end_header"] => break,
+                    ["element", "face", n] => {
+                        if let Ok(n) = n.parse::<usize>()
+                            && n > MAX_MESH_TRIANGLES
+                        {
+                            return Err(too_big(path, n, "faces", MAX_MESH_TRIANGLES));
+                        }
+                    }
+                    ["element", "vertex", n] => {
+                        if let Ok(n) = n.parse::<usize>()
+                            && n > MAX_MESH_VERTICES
+                        {
+                            return Err(too_big(path, n, "vertices", MAX_MESH_VERTICES));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// Checks that a mesh has triangles (at most [`MAX_MESH_TRIANGLES`]), finite vertices (at most
+/// [`MAX_MESH_VERTICES`]) and in-range indices.
 pub fn check_mesh(path: &Path, mesh: &Mesh) -> Result<(), MeshImportError> {
     if mesh.triangles.is_empty() {
         return Err(fail(path, "no triangles"));
+    }
+    if mesh.triangles.len() > MAX_MESH_TRIANGLES {
+        return Err(too_big(
+            path,
+            mesh.triangles.len(),
+            "triangles",
+            MAX_MESH_TRIANGLES,
+        ));
+    }
+    if mesh.vertices.len() > MAX_MESH_VERTICES {
+        return Err(too_big(
+            path,
+            mesh.vertices.len(),
+            "vertices",
+            MAX_MESH_VERTICES,
+        ));
     }
     if let Some(i) = mesh
         .vertices
@@ -799,4 +900,46 @@ fn load_ply(path: &Path) -> Result<Mesh, MeshImportError> {
         }
     }
     Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A mesh above the size limit is refused, naming the file, from its header alone: a PLY
+    /// declaring 20 million faces (and nothing else), a binary STL of 10,000,001 triangles (a
+    /// sparse file: nothing is read past the header).
+    #[test]
+    fn meshes_above_the_limit_are_refused_by_their_header() {
+        let dir = tempfile::tempdir().unwrap();
+        let ply = dir.path().join("huge.ply");
+        std::fs::write(
+            &ply,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 20000000\nproperty list uchar int vertex_indices\n\
+             end_header\n",
+        )
+        .unwrap();
+        let err = load_mesh_in(&ply, LengthUnit::Metre)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("huge.ply") && err.contains("20000000 faces, more than the 10000000"),
+            "{err}"
+        );
+        let stl = dir.path().join("huge.stl");
+        let count = MAX_MESH_TRIANGLES as u32 + 1;
+        let file = File::create(&stl).unwrap();
+        let mut header = vec![0u8; 84];
+        header[80..].copy_from_slice(&count.to_le_bytes());
+        std::io::Write::write_all(&mut &file, &header).unwrap();
+        file.set_len(84 + 50 * u64::from(count)).unwrap();
+        let err = load_mesh_in(&stl, LengthUnit::Metre)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("huge.stl") && err.contains("10000001 triangles, more than the"),
+            "{err}"
+        );
+    }
 }
