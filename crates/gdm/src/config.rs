@@ -36,9 +36,12 @@ pub const MAX_CONTEXT_DEPTH: usize = 64;
 /// Largest node cap ([`MemoryParams::max_nodes`]): 10⁷ nodes, already 81 GB of weights at
 /// D = 675, K = 2.
 pub const MAX_NODES: usize = 10_000_000;
-/// Longest RNAT chain ([`ReplayParams::chain_length`]). One replay trains on up to
-/// nodes × chain length pseudo-samples; the paper's chains have K + 1 = 3 nodes.
-pub const MAX_CHAIN_LENGTH: usize = 10_000;
+/// Longest RNAT chain ([`ReplayParams::chain_length`]): K + 1 for the largest context depth.
+/// One replay trains on up to nodes × chain length pseudo-samples, so a run's time grows
+/// linearly with it (the NI scenario on the embedded dataset: 4.6 s at the paper's K + 1 = 3,
+/// 22 s at 30, 157 s at 300; 10,000 would take over an hour). An RNAT reproduces the temporal
+/// context of K + 1 consecutive samples; longer chains replay the same loops again.
+pub const MAX_CHAIN_LENGTH: usize = MAX_CONTEXT_DEPTH + 1;
 /// Most label levels of one network ([`GammaGwr::new`](crate::GammaGwr::new); the memories
 /// use 1 and 2).
 pub const MAX_LEVELS: usize = 64;
@@ -363,7 +366,10 @@ impl GdmConfig {
             if len > MAX_CHAIN_LENGTH {
                 return Err(ConfigError::invalid(
                     "replay.chain_length",
-                    format!("{len} is larger than {MAX_CHAIN_LENGTH}"),
+                    format!(
+                        "{len} is larger than {MAX_CHAIN_LENGTH} (K + 1 for the largest context \
+                         depth; every replay trains on up to nodes × chain length samples)"
+                    ),
                 ));
             }
         }
@@ -552,6 +558,11 @@ mod tests {
             "replay.chain_length",
         );
         check(&|c| c.replay.chain_length = Some(0), "replay.chain_length");
+        // Reported: 10,000 was accepted and turned a 1.5 s run into more than 300 s.
+        check(
+            &|c| c.replay.chain_length = Some(10_000),
+            "replay.chain_length",
+        );
         check(
             &|c| c.episodic.max_nodes = Some(MAX_NODES + 1),
             "episodic.max_nodes",

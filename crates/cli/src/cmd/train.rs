@@ -410,7 +410,11 @@ pub fn run(args: Args) -> Result<()> {
         steps,
         features.len(),
         features.dim,
-        if s.replay { "on" } else { "off" },
+        if s.replay {
+            format!("on (chains of {})", s.config.replay_chain_length())
+        } else {
+            "off".into()
+        },
         if s.config.episodic.context_depth > 0 {
             "on"
         } else {
