@@ -212,7 +212,8 @@ impl FeatureTable {
     /// ([`FeatureTable::check`]), `dim` columns when given (else at least one), one row per
     /// view (`manifest.views` rows, each collection × instance × frame exactly once), labels
     /// in range and consistent with the manifest (the instance's category, the sequence id
-    /// [`Manifest::sequence_id`]) and finite features. The error names the first bad row.
+    /// [`Manifest::sequence_id`]), each sequence's rows in frame order, and finite features.
+    /// The error names the first bad row.
     pub fn check_dataset(&self, manifest: &Manifest, dim: Option<usize>) -> Result<(), String> {
         self.check()?;
         match dim {
@@ -234,6 +235,9 @@ impl FeatureTable {
         }
         let frames = manifest.frames_per_sequence as u64;
         let mut seen = vec![false; n];
+        // The last frame of each sequence so far: the rows of a sequence are its views in frame
+        // order (the order every writer uses), so a `frame` column that disagrees is corrupt.
+        let mut last_frame: Vec<Option<u32>> = vec![None; n / frames.max(1) as usize];
         for i in 0..n {
             let (c, cat, inst) = (self.collection[i], self.category[i], self.instance[i]);
             let (seq, f) = (self.sequence[i], self.frame[i]);
@@ -283,6 +287,14 @@ impl FeatureTable {
             if std::mem::replace(&mut seen[view], true) {
                 return Err(format!(
                     "row {i}: collection {c}, instance {inst}, frame {f} appears twice"
+                ));
+            }
+            // `view < n` above, so `seq < n / frames`.
+            let previous = last_frame[seq as usize].replace(f);
+            if let Some(p) = previous.filter(|&p| p > f) {
+                return Err(format!(
+                    "row {i}: collection {c}, instance {inst}, frame {f} comes after its frame \
+                     {p}: a sequence's rows must be in frame order"
                 ));
             }
         }
