@@ -448,3 +448,66 @@ fn refused_merges_evals_generations_and_sim_runs_leave_their_directory_as_found(
         }
     }
 }
+
+/// `lgdm eval` of the finished run's model into `out` (`None`: its default, `eval/` beside the
+/// model).
+fn eval_cmd(model: &Path, out: Option<&Path>) -> Command {
+    let mut cmd = lgdm();
+    cmd.args(["eval", "--progress", "none", "--model"])
+        .arg(model)
+        .arg("--dataset")
+        .arg(tiny_dataset());
+    if let Some(out) = out {
+        cmd.arg("--out").arg(out);
+    }
+    cmd
+}
+
+/// Issue 22: `eval --out` wrote its three files into any directory (a foreign one, a training
+/// run, whose `train --force` then refused it for "holding eval.json"), while the `eval/`
+/// folder beside a model was deleted by `train --force` whatever it held. Now eval writes only
+/// into a directory of evaluations, and `train --force` replaces a run's `eval/` only when it
+/// holds nothing but an evaluation.
+#[test]
+fn eval_writes_only_evaluations_and_force_replaces_them_only() {
+    let base = work_dir().join("eval-dirs");
+    let foreign = foreign_dir(&base.join("foreign"));
+    let run = copy_of_run(&base.join("run"));
+    let model = run.join("model-trial0.lgdm");
+
+    let cmd = eval_cmd(&model, Some(&foreign));
+    assert_refused_as_found(cmd, &foreign, "eval --out into a foreign directory");
+    let other = copy_of_run(&base.join("other-run"));
+    let cmd = eval_cmd(&model, Some(&other));
+    assert_refused_as_found(cmd, &other, "eval --out into a training run");
+    assert_root_untouched(eval_cmd(&model, Some(Path::new("/"))), "eval --out /");
+
+    // The default, twice: the second evaluation replaces the first.
+    for _ in 0..2 {
+        common::check(eval_cmd(&model, None).output().unwrap(), "eval");
+    }
+    let eval = run.join("eval");
+    let mut names: Vec<String> = std::fs::read_dir(&eval)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name != LOCK_FILE)
+        .collect();
+    names.sort();
+    assert_eq!(names, ["confusion.csv", "confusion.png", "eval.json"]);
+
+    // Someone's file inside the run's eval/: --force keeps the whole run.
+    std::fs::write(eval.join("notes.txt"), "mine").unwrap();
+    let cmd = train_cmd(&run, &["--force"]);
+    assert_refused_as_found(cmd, &run, "train --force over an eval/ holding notes.txt");
+    // An eval/ of evaluations only: replaced with the run whose model it scored.
+    std::fs::remove_file(eval.join("notes.txt")).unwrap();
+    common::check(
+        train_cmd(&run, &["--force"]).output().unwrap(),
+        "train --force",
+    );
+    assert!(
+        !eval.exists(),
+        "the old run's evaluation outlived its model"
+    );
+    assert_run_complete(&run, 1);
+}

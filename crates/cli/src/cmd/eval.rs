@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use crate::data::{self, Encoder};
 use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
-use lgdm_gdm::experiment::run_dir::write_atomic;
+use lgdm_gdm::experiment::run_dir::{self, write_atomic};
 
 /// Which collections to score.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -48,7 +48,8 @@ pub struct Args {
     #[arg(long)]
     pub no_context: bool,
     /// Where to write confusion.csv, confusion.png and eval.json (default: `eval/` beside the
-    /// model).
+    /// model). An earlier evaluation there is replaced; a directory holding anything else (a
+    /// training run, other files) is refused.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Score the model even though the dataset's category or instance names differ from those
@@ -79,7 +80,7 @@ fn check_labels(
     let Some(dir) = args.model.parent() else {
         return Ok(());
     };
-    let path = dir.join(lgdm_gdm::experiment::run_dir::METRICS_FILE);
+    let path = dir.join(run_dir::METRICS_FILE);
     let Ok(text) = std::fs::read_to_string(&path) else {
         reporter.message(&format!(
             "note: no run record ({}) beside the model: its category names cannot be checked \
@@ -137,9 +138,9 @@ pub fn run(args: Args) -> Result<()> {
             .parent()
             .map(|p| p.to_path_buf())
             .unwrap_or_default()
-            .join("eval"),
+            .join(run_dir::EVAL_DIR),
     };
-    for name in ["", "confusion.csv", "confusion.png", "eval.json"] {
+    for name in std::iter::once("").chain(run_dir::EVAL_FILES) {
         let target = if name.is_empty() {
             out.clone()
         } else {
@@ -188,7 +189,9 @@ pub fn run(args: Args) -> Result<()> {
         "inference_ms_per_sample": e.ms_per_sample,
     });
 
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // Held while the files are written; an earlier evaluation's files are replaced, a directory
+    // holding anything else is refused untouched.
+    let _lock = run_dir::claim_eval_dir(&out)?;
     let mut csv = String::from("true\\predicted");
     for name in &manifest.categories {
         let _ = write!(csv, ",{name}");

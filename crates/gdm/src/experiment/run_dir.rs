@@ -245,14 +245,54 @@ impl Run {
     }
 }
 
-/// What a training run directory holds (what `--force` may remove).
-fn classify(name: &str, _is_dir: bool) -> lgdm_base::fs::Entry {
+/// The folder `lgdm eval` writes into beside the model it scores (so inside a training run
+/// directory: `--force` replaces it with the run whose model it scored).
+pub const EVAL_DIR: &str = "eval";
+/// The files `lgdm eval` writes into its output directory.
+pub const EVAL_FILES: [&str; 3] = ["confusion.csv", "confusion.png", "eval.json"];
+
+fn is_temporary(name: &str) -> bool {
+    name.starts_with('.') && name.ends_with(".tmp")
+}
+
+/// What an evaluation directory holds: [`EVAL_FILES`] and nothing else.
+fn classify_eval(name: &str, _is_dir: bool) -> lgdm_base::fs::Entry {
+    if EVAL_FILES.contains(&name) || is_temporary(name) || name == LOCK_FILE {
+        lgdm_base::fs::Entry::Ours
+    } else {
+        lgdm_base::fs::Entry::Foreign
+    }
+}
+
+/// The ownership policy of `lgdm eval` output directories.
+const EVAL_OWNERSHIP: lgdm_base::fs::Ownership<'static> = lgdm_base::fs::Ownership {
+    kind: "an lgdm evaluation (confusion.csv, confusion.png, eval.json)",
+    occupied: "holds another evaluation",
+    classify: &classify_eval,
+};
+
+/// Creates and locks `dir` for the output of `lgdm eval`, removing an earlier evaluation's
+/// files ([`EVAL_FILES`]). A directory holding anything else (a training run, someone's files)
+/// is refused and left as it was found, lock file included.
+pub fn claim_eval_dir(dir: &Path) -> Result<lgdm_base::fs::DirLock, ExperimentError> {
+    lgdm_base::fs::claim(dir, true, &EVAL_OWNERSHIP).map_err(|e| run_dir_error(&e.path, e.reason))
+}
+
+/// What a training run directory holds (what `--force` may remove): its own files, and an
+/// [`EVAL_DIR`] holding only an evaluation's files (anything else in it is not removed).
+fn classify(name: &str, is_dir: bool) -> lgdm_base::fs::Entry {
+    if name == EVAL_DIR {
+        return lgdm_base::fs::Entry::Folder;
+    }
+    if let Some(inner) = name.strip_prefix("eval/") {
+        return classify_eval(inner, is_dir);
+    }
     let ours = matches!(
         name,
-        CONFIG_FILE | METRICS_FILE | TRIALS_DIR | "summary.txt" | "eval"
+        CONFIG_FILE | METRICS_FILE | TRIALS_DIR | "summary.txt"
     ) || name.ends_with(".png")
         || (name.starts_with("model-trial") && name.ends_with(".lgdm"))
-        || (name.starts_with('.') && name.ends_with(".tmp"));
+        || is_temporary(name);
     if ours {
         lgdm_base::fs::Entry::Ours
     } else {
