@@ -23,6 +23,7 @@ fn main() {
         name: format!("{category}_{:02}", instance + 1),
         category: category.to_string(),
         mesh,
+        physics: Default::default(),
     };
     let scene = grasp_scene(&GraspSpec::default(), 0, image, &object);
     if let Err(e) = grasp_preview(&scene, &object.name).write_png(out.as_ref()) {

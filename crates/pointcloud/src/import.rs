@@ -35,6 +35,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::mesh::Mesh;
 use crate::objects::{ObjectModel, rest_on_table};
+use crate::sidecar::{ObjectProps, SIDECAR_FILE, Sidecar, SidecarError};
 
 /// Lower limit of a plausible household object's largest extent, millimetres (20 mm).
 pub const MIN_OBJECT_EXTENT_MM: f64 = 20.0;
@@ -63,6 +64,9 @@ pub enum MeshImportError {
         /// What is wrong with it.
         reason: String,
     },
+    /// The library's `objects.toml` cannot be used.
+    #[error(transparent)]
+    Sidecar(#[from] SidecarError),
     /// The mesh's size fits more than one unit; the unit must be given.
     #[error(
         "mesh {}: cannot tell its unit: its largest extent, {} file units, is household-sized \
@@ -123,6 +127,7 @@ impl MeshImportError {
             | MeshImportError::AmbiguousUnit { path, .. }
             | MeshImportError::NoPlausibleUnit { path, .. } => path,
             MeshImportError::UnknownUnitFile { dir, .. } => dir,
+            MeshImportError::Sidecar(e) => &e.path,
         }
     }
 }
@@ -351,6 +356,8 @@ pub enum UnitSource {
     Given,
     /// Given for this file ([`MeshUnits::files`]).
     GivenForFile,
+    /// Given by the library's sidecar ([`crate::sidecar`], `objects.toml`).
+    Sidecar,
 }
 
 /// What importing one mesh file found: its unit, how the unit was chosen and the resulting
@@ -365,6 +372,9 @@ pub struct ImportReport {
     pub unit_source: UnitSource,
     /// Largest extent of the imported mesh's bounding box, metres.
     pub largest_extent_m: f32,
+    /// What the library's sidecar (`objects.toml`) set for this file.
+    #[serde(default, skip_serializing_if = "ObjectProps::is_empty")]
+    pub sidecar: ObjectProps,
 }
 
 impl ImportReport {
@@ -380,6 +390,7 @@ impl ImportReport {
             UnitSource::Guessed => "guessed",
             UnitSource::Given => "given",
             UnitSource::GivenForFile => "given for this file",
+            UnitSource::Sidecar => "from objects.toml",
         };
         format!(
             "units {} ({source}), largest extent {} m",
@@ -401,14 +412,16 @@ pub struct ImportedObject {
 const EXTENSIONS: [&str; 3] = ["obj", "stl", "ply"];
 
 /// Loads every `<dir>/<category>/<instance>.{obj,stl,ply}` in sorted order (categories by
-/// directory name, instances by file name), in the units `units` gives or guesses. Instance
-/// names are the file stems and must be unique across categories; every file named in
-/// `units.files` must exist.
+/// directory name, instances by file name), in the units `units` gives, the sidecar
+/// (`<dir>/objects.toml`, [`crate::sidecar`]) gives, or guessed — in that order — and with the
+/// sidecar's rest pose and colour. Instance names are the file stems and must be unique across
+/// categories; every file named in `units.files` or the sidecar must exist.
 pub fn load_mesh_library(
     dir: &Path,
     units: &MeshUnits,
 ) -> Result<Vec<ImportedObject>, MeshImportError> {
     units.check().map_err(|reason| fail(dir, reason))?;
+    let sidecar = Sidecar::read(dir)?;
     let sorted_entries = |d: &Path| -> Result<Vec<PathBuf>, MeshImportError> {
         let mut v: Vec<PathBuf> = std::fs::read_dir(d)
             .map_err(|e| fail(d, format!("cannot list: {e}")))?
@@ -483,16 +496,35 @@ pub fn load_mesh_library(
             example: found[0].2.clone(),
         });
     }
+    if let Some(file) = sidecar
+        .files
+        .keys()
+        .find(|f| !found.iter().any(|(_, _, key, _)| key == *f))
+    {
+        return Err(MeshImportError::Sidecar(SidecarError {
+            path: dir.join(SIDECAR_FILE),
+            reason: format!(
+                "files.\"{file}\": no such mesh in {} (files are named as <category>/<file>, \
+                 e.g. \"{}\")",
+                dir.display(),
+                found[0].2
+            ),
+        }));
+    }
     found
         .into_iter()
         .map(|(category, name, key, path)| {
-            let given = units.given(&key);
-            let (mesh, report) = import_mesh(&path, key, given)?;
+            let props = sidecar.props(&key);
+            let given = units
+                .given(&key)
+                .or(props.unit.map(|u| (u, UnitSource::Sidecar)));
+            let (mesh, report) = import_mesh(&path, key, given, &props)?;
             Ok(ImportedObject {
                 object: ObjectModel {
                     name,
                     category,
                     mesh,
+                    physics: props.physics(),
                 },
                 report,
             })
@@ -503,14 +535,19 @@ pub fn load_mesh_library(
 /// Loads one mesh file, guessing its unit ([`LengthUnit::plausible_units`]; an ambiguous or
 /// implausible size is an error), converts it to metres, centres it and rests it on z = 0.
 pub fn load_mesh(path: &Path) -> Result<(Mesh, LengthUnit), MeshImportError> {
-    let (mesh, report) = import_mesh(path, file_label(path), None)?;
+    let (mesh, report) = import_mesh(path, file_label(path), None, &ObjectProps::default())?;
     Ok((mesh, report.unit))
 }
 
 /// Loads one mesh file whose coordinates are in `unit`, converts it to metres, centres it and
 /// rests it on z = 0.
 pub fn load_mesh_in(path: &Path, unit: LengthUnit) -> Result<Mesh, MeshImportError> {
-    let (mesh, _) = import_mesh(path, file_label(path), Some((unit, UnitSource::Given)))?;
+    let (mesh, _) = import_mesh(
+        path,
+        file_label(path),
+        Some((unit, UnitSource::Given)),
+        &ObjectProps::default(),
+    )?;
     Ok(mesh)
 }
 
@@ -526,6 +563,7 @@ fn import_mesh(
     path: &Path,
     file: String,
     given: Option<(LengthUnit, UnitSource)>,
+    props: &ObjectProps,
 ) -> Result<(Mesh, ImportReport), MeshImportError> {
     let ext = path
         .extension()
@@ -577,6 +615,12 @@ fn import_mesh(
     if s != 1.0 {
         mesh.scale_xyz([s, s, s]);
     }
+    if let Some(rotation) = props.rest_rotation() {
+        mesh = mesh.transformed(&rotation);
+    }
+    if let Some(rgb) = props.rgb() {
+        mesh.colors.fill(rgb);
+    }
     rest_on_table(&mut mesh);
     let largest_extent_m = mesh
         .bounds()
@@ -589,6 +633,7 @@ fn import_mesh(
             unit,
             unit_source,
             largest_extent_m,
+            sidecar: props.clone(),
         },
     ))
 }

@@ -43,6 +43,7 @@ pub mod progress;
 pub mod projection;
 pub mod render;
 pub mod segment;
+pub mod sidecar;
 
 pub use cloud::PointCloud;
 pub use lgdm_base::fs::{DirLock, LOCK_FILE};

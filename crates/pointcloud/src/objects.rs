@@ -44,6 +44,9 @@ pub struct ObjectModel {
     pub category: String,
     /// The mesh, metres.
     pub mesh: Mesh,
+    /// Its simulated body's mass and friction where they are given (an imported mesh's
+    /// `objects.toml`); else the simulator's material rules apply.
+    pub physics: crate::sidecar::ObjectPhysics,
 }
 
 /// An unknown procedural category name.
@@ -65,6 +68,7 @@ pub fn procedural_library(
                 name: format!("{category}_{:02}", instance + 1),
                 category: category.to_string(),
                 mesh,
+                physics: Default::default(),
             });
         }
     }

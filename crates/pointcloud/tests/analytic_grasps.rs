@@ -28,6 +28,7 @@ fn object(category: &str, instance: usize, seed: u64) -> ObjectModel {
         name: format!("{category}_{instance:02}"),
         category: category.to_string(),
         mesh: procedural_object(category, instance, seed).unwrap(),
+        physics: Default::default(),
     }
 }
 

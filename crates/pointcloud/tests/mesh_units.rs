@@ -162,6 +162,7 @@ fn given_units_give_objects_of_the_right_size() {
             unit: LengthUnit::Millimetre,
             unit_source: UnitSource::Given,
             largest_extent_m: lib[0].report.largest_extent_m,
+            sidecar: Default::default(),
         }
     );
     assert!((lib[0].report.largest_extent_m - 0.043).abs() < 1e-5);
@@ -422,6 +423,7 @@ fn red_cube(name: &str, side_m: f32) -> ObjectModel {
         name: name.into(),
         category: "cube".into(),
         mesh,
+        physics: Default::default(),
     }
 }
 

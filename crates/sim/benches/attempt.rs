@@ -48,6 +48,7 @@ fn bench(c: &mut Criterion) {
         name: "mug".into(),
         category: "mug".into(),
         mesh: procedural_object("mug", 0, 2).unwrap(),
+        physics: Default::default(),
     };
     let mut shapes = LibraryShapes::new(ShapeConfig::default(), 1);
     let perception = Perception::new(Default::default()).unwrap();

@@ -200,7 +200,10 @@ pub fn drop_object<R: rand::Rng + ?Sized>(
     rng: &mut R,
 ) -> Result<ObjectHandle, WorldError> {
     if shapes.config.shape == ObjectShape::Hull {
-        return Ok(world.drop_object(name, &object.mesh, region, rng)?.0);
+        let material = world.config().object.with_physics(&object.physics);
+        return Ok(world
+            .drop_object_with(name, &object.mesh, &material, region, rng)?
+            .0);
     }
     let pose = region.sample_pose(&object.mesh, world.config().table.top_z_m(), rng);
     let handle = shapes.spawn(world, index, name, object, &pose)?;
@@ -306,15 +309,15 @@ impl LibraryShapes {
         object: &ObjectModel,
         pose: &Pose,
     ) -> Result<ObjectHandle, WorldError> {
+        let material = world.config().object.with_physics(&object.physics);
         let handle = match self.config.shape {
-            ObjectShape::Hull => world.spawn_object(name, &object.mesh, pose)?,
+            ObjectShape::Hull => world.spawn_object_with(name, &object.mesh, pose, &material)?,
             ObjectShape::Decomposition => {
                 if self.parts.len() <= index {
                     self.parts.resize(index + 1, None);
                 }
                 let parts =
                     self.parts[index].get_or_insert_with(|| decompose(&object.mesh, &self.config));
-                let material = world.config().object.clone();
                 world.spawn_object_parts(name, &object.mesh, parts, pose, &material)?
             }
         };

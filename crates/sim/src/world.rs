@@ -274,6 +274,20 @@ impl Default for ObjectMaterial {
 }
 
 impl ObjectMaterial {
+    /// This material with an object's own mass and friction where it has them (an imported
+    /// mesh's `objects.toml`): the mass replaces the density rule and its clamp.
+    pub fn with_physics(&self, physics: &lgdm_pointcloud::sidecar::ObjectPhysics) -> Self {
+        let mut m = self.clone();
+        if let Some(kg) = physics.mass_kg {
+            m.min_mass_kg = kg;
+            m.max_mass_kg = kg;
+        }
+        if let Some(mu) = physics.friction {
+            m.friction = mu;
+        }
+        m
+    }
+
     /// Checks every field; the error names the first bad one (prefixed with `prefix`).
     fn validate(&self, prefix: &str) -> Result<(), WorldError> {
         positive(&format!("{prefix}density_kg_m3"), self.density_kg_m3)?;
@@ -1052,6 +1066,19 @@ impl World {
         region: &DropRegion,
         rng: &mut R,
     ) -> Result<(ObjectHandle, SettleReport), WorldError> {
+        let material = self.config.object.clone();
+        self.drop_object_with(name, mesh, &material, region, rng)
+    }
+
+    /// [`World::drop_object`] with an explicit material.
+    pub fn drop_object_with<R: rand::Rng + ?Sized>(
+        &mut self,
+        name: &str,
+        mesh: &Mesh,
+        material: &ObjectMaterial,
+        region: &DropRegion,
+        rng: &mut R,
+    ) -> Result<(ObjectHandle, SettleReport), WorldError> {
         for (i, v) in region
             .center_xy_m
             .iter()
@@ -1062,7 +1089,7 @@ impl World {
             finite(&format!("drop_region[{i}]"), *v)?;
         }
         let pose = region.sample_pose(mesh, self.config.table.top_z_m(), rng);
-        let handle = self.spawn_object(name, mesh, &pose)?;
+        let handle = self.spawn_object_with(name, mesh, &pose, material)?;
         let report = self.settle();
         Ok((handle, report))
     }

@@ -154,6 +154,7 @@ fn check_colliders(name: &str, mesh: &Mesh) {
         name: name.into(),
         category: "dense".into(),
         mesh: mesh.clone(),
+        physics: Default::default(),
     }];
     lgdm_sim::scenario::check_library(&config, &library).unwrap();
     LibraryShapes::new(ShapeConfig::default(), 1)

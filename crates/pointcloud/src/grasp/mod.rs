@@ -23,6 +23,7 @@
 //!     name: "mug_01".into(),
 //!     category: "mug".into(),
 //!     mesh: procedural_object("mug", 0, 0).unwrap(),
+//!     physics: Default::default(),
 //! };
 //! let scene = grasp_scene(&GraspSpec::default(), 0, 0, &object);
 //! let positives: Vec<GraspRectangle> = scene.positives();
