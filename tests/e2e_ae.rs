@@ -402,8 +402,8 @@ fn sim_grasp_network_plays_isolated_rounds() {
     for a in attempts {
         let grasp = &a["grasp"];
         if grasp.is_null() {
-            assert_eq!(
-                a["reason"], "no_grasp_found",
+            assert!(
+                a["reason"] == "no_grasp_found" || a["reason"] == "wider_than_gripper",
                 "attempt without a grasp: {a}"
             );
             continue;

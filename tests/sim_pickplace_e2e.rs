@@ -473,7 +473,10 @@ fn packing_sorts_by_the_recognised_category_and_judges_by_the_true_one() {
     let mut right_basket_target = false;
     for a in r["attempts"].as_array().unwrap() {
         let Some(pk) = a.get("packing") else {
-            assert_eq!(a["reason"], "no_grasp_found", "{a}");
+            assert!(
+                a["reason"] == "no_grasp_found" || a["reason"] == "wider_than_gripper",
+                "{a}"
+            );
             continue;
         };
         let placed = a["placement_success"].as_bool().unwrap();

@@ -107,6 +107,9 @@ pub struct AttemptConfig {
     /// Height of the tool over the baskets while carrying (m; default 1.03: the arm reaches
     /// the baskets up to ~1.035 m).
     pub carry_height_m: f64,
+    /// The carry's joint speed and acceleration limits as a fraction of the arm's (default
+    /// 1.0: the arm's full limits; speeds scale by it, accelerations by its square). In (0, 1].
+    pub carry_speed_scale: f64,
     /// Index of the target basket in the world's baskets (default 0, the reference tray at
     /// (0.7, 0, 0.685)).
     pub target_basket: usize,
@@ -153,6 +156,7 @@ impl Default for AttemptConfig {
                 ..LinearMove::default()
             },
             carry_height_m: 1.03,
+            carry_speed_scale: 1.0,
             target_basket: 0,
             release_clearance_m: 0.03,
             release_wait_s: 0.3,
@@ -180,6 +184,12 @@ impl AttemptConfig {
             if !(value.is_finite() && value > 0.0) {
                 return bad(field, value);
             }
+        }
+        if !(self.carry_speed_scale > 0.0 && self.carry_speed_scale <= 1.0) {
+            return Err(AttemptError::InvalidConfig {
+                field: "carry_speed_scale",
+                reason: format!("{} is not in (0, 1]", self.carry_speed_scale),
+            });
         }
         for (field, value) in [
             ("approach_clearance_m", self.approach_clearance_m),
@@ -230,6 +240,9 @@ impl AttemptConfig {
 pub enum FailureReason {
     /// The source proposed no grasp that could be placed in the world.
     NoGraspFound,
+    /// No grasp, and the object aimed at is wider than the gripper's stroke whichever way the
+    /// jaws turn (its collider's narrowest horizontal width): no top-down grasp can take it.
+    WiderThanGripper,
     /// The arm cannot reach the pre-grasp, the grasp or the basket.
     Unreachable,
     /// The arm or the fingers hit something on the way down and the grasp then failed.
@@ -249,8 +262,9 @@ pub enum FailureReason {
 
 impl FailureReason {
     /// Every reason, in a fixed order.
-    pub const ALL: [FailureReason; 8] = [
+    pub const ALL: [FailureReason; 9] = [
         Self::NoGraspFound,
+        Self::WiderThanGripper,
         Self::Unreachable,
         Self::CollisionOnApproach,
         Self::Missed,
@@ -264,6 +278,7 @@ impl FailureReason {
     pub fn as_str(self) -> &'static str {
         match self {
             Self::NoGraspFound => "no_grasp_found",
+            Self::WiderThanGripper => "wider_than_gripper",
             Self::Unreachable => "unreachable",
             Self::CollisionOnApproach => "collision_on_approach",
             Self::Missed => "missed",
@@ -581,13 +596,20 @@ fn plan_joint_move(
     cell: &mut Cell,
     position_m: [f64; 3],
     yaw_rad: f64,
+    speed_scale: f64,
     wall: &mut WallTimes,
 ) -> Option<JointTrajectory> {
     let q0 = cell.robot.joints_rad();
     wall.time(Work::Planning, || {
         let target = IkTarget::TopDown(TopDownGrasp::new(position_m, yaw_rad));
         let q = cell.ik.solve(&target, &q0).ok()?.joints_rad;
-        JointTrajectory::point_to_point(cell.robot.arm(), &q0, &q).ok()
+        if speed_scale == 1.0 {
+            return JointTrajectory::point_to_point(cell.robot.arm(), &q0, &q).ok();
+        }
+        let mut arm = cell.robot.arm().clone();
+        arm.max_speed_rad_s = arm.max_speed_rad_s.map(|v| v * speed_scale);
+        arm.max_accel_rad_s2 = arm.max_accel_rad_s2.map(|a| a * speed_scale * speed_scale);
+        JointTrajectory::point_to_point(&arm, &q0, &q).ok()
     })
 }
 
@@ -1011,8 +1033,13 @@ impl Attempt<'_> {
         };
         let [bx, by, floor_z] = basket.floor_center_m.map(f64::from);
         let above = [bx, by, config.carry_height_m];
-        let Some(carry) = plan_joint_move(self.cell, above, self.plan.grasp.yaw_rad, self.wall)
-        else {
+        let Some(carry) = plan_joint_move(
+            self.cell,
+            above,
+            self.plan.grasp.yaw_rad,
+            config.carry_speed_scale,
+            self.wall,
+        ) else {
             return Err(Stop::Failed(FailureReason::Unreachable));
         };
         follow(self.cell, &carry, false, self.wall)?;

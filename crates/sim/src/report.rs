@@ -50,15 +50,21 @@ pub fn summary_table(r: &RunResults) -> String {
         let _ = writeln!(out, "{name:<28} {}", rate.describe());
     }
     let _ = writeln!(out, "\nper category (object aimed at):");
+    // As wide as the longest name (at least 12): YCB names such as `tomato_soup_can` are longer.
+    let w = s
+        .per_category
+        .keys()
+        .map(|c| c.chars().count())
+        .fold(12, usize::max);
     let _ = writeln!(
         out,
-        "  {:<12} {:>8}  {:<32} placement success",
+        "  {:<w$} {:>8}  {:<32} placement success",
         "category", "attempts", "grasp success"
     );
     for (c, cs) in &s.per_category {
         let _ = writeln!(
             out,
-            "  {c:<12} {:>8}  {:<32} {}",
+            "  {c:<w$} {:>8}  {:<32} {}",
             cs.attempts,
             cs.grasp_success_rate.describe(),
             cs.placement_success_rate.describe()

@@ -213,7 +213,51 @@ fn no_grasp() -> Execution {
     }
 }
 
+/// Directions (about world z) at which [`narrowest_width_m`] measures: every degree of a half
+/// turn.
+const WIDTH_DIRECTIONS: usize = 180;
+
+/// The narrowest horizontal width of the object's collider (m): the least, over the jaws'
+/// directions about world z, of its extent along that direction — what a top-down parallel
+/// grasp must open to.
+pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
+    let pose = world.object_pose(object).ok()?;
+    let points: Vec<[f32; 3]> = world
+        .object_hull_points_m(object)
+        .ok()?
+        .into_iter()
+        .map(|p| lgdm_pointcloud::math::transform_point(&pose, p))
+        .collect();
+    if points.is_empty() {
+        return None;
+    }
+    (0..WIDTH_DIRECTIONS)
+        .map(|k| {
+            let a = std::f32::consts::PI * k as f32 / WIDTH_DIRECTIONS as f32;
+            let (s, c) = a.sin_cos();
+            let (lo, hi) = points.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+                let d = p[0] * c + p[1] * s;
+                (lo.min(d), hi.max(d))
+            });
+            hi - lo
+        })
+        .reduce(f32::min)
+}
+
 impl<F: FnMut(Progress)> Runner<'_, F> {
+    /// An attempt at `object` that tried no grasp: [`FailureReason::WiderThanGripper`] when the
+    /// object is wider than the stroke whichever way the jaws turn, else no grasp found.
+    fn no_grasp_at(&self, world: &World, object: Option<ObjectHandle>) -> Execution {
+        let stroke = self.gripper.max_opening_m;
+        match object.and_then(|h| narrowest_width_m(world, h)) {
+            Some(width) if width > stroke => Execution {
+                reason: Some(FailureReason::WiderThanGripper),
+                ..Execution::default()
+            },
+            _ => no_grasp(),
+        }
+    }
+
     fn progress(&mut self) {
         let p = match self.spec.max_attempts {
             Some(max) => Progress {
@@ -581,13 +625,14 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let candidates = self.candidates(&view, 0, &mut clock)?;
         let aimed = view.object.or(Some(object.handle));
         if candidates.is_empty() {
+            let exec = self.no_grasp_at(&cell.world, aimed);
             self.record(
                 cell,
                 (round, 0),
                 objects,
                 aimed,
                 None,
-                no_grasp(),
+                exec,
                 pose,
                 Decision::nothing(self.spec),
                 clock,
@@ -682,13 +727,17 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             let Some(candidate) =
                 candidates.get(consecutive.min(candidates.len().saturating_sub(1)))
             else {
+                // Attributed to the largest segment's object, which the attempt would have
+                // aimed at first.
+                let aimed = views.first().and_then(|v| v.object);
+                let exec = self.no_grasp_at(&cell.world, aimed);
                 self.record(
                     cell,
                     at,
                     objects,
+                    aimed,
                     None,
-                    None,
-                    no_grasp(),
+                    exec,
                     None,
                     Decision::nothing(self.spec),
                     clock,

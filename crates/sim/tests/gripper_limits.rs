@@ -1,0 +1,99 @@
+//! Issue 23: an object no top-down grasp of the gripper can take is reported as such
+//! (`wider_than_gripper`, with the object named) instead of an anonymous "no grasp found", and
+//! attempts that find no grasp on a cluttered table are attributed to the object they looked at.
+
+use std::path::Path;
+
+use lgdm_pointcloud::math::translation;
+use lgdm_pointcloud::mesh::Mesh;
+use lgdm_sim::attempt::FailureReason;
+use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource};
+use lgdm_sim::runner::narrowest_width_m;
+use lgdm_sim::scenario::Scenario;
+use lgdm_sim::spec::builtin_source;
+use lgdm_sim::world::{World, WorldConfig};
+
+/// OBJ text of a mesh (metres).
+fn obj(mesh: &Mesh) -> String {
+    let mut s = String::from("o mesh\n");
+    for v in &mesh.vertices {
+        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+    }
+    for t in &mesh.triangles {
+        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s
+}
+
+/// A closed can of diameter `d` and height `h` (m).
+fn can(d: f32, h: f32) -> Mesh {
+    let r = d / 2.0;
+    Mesh::lathe(&[[0.0, 0.0], [r, 0.0], [r, h], [0.0, h]], 32, [40, 90, 160])
+}
+
+#[test]
+fn the_narrowest_width_is_the_least_extent_over_the_jaw_directions() {
+    let mut world = World::new(WorldConfig::default()).unwrap();
+    let top = world.config().table.top_z_m();
+    let bar = Mesh::cuboid([0.0, 0.0, 0.02], [0.06, 0.2, 0.04], [200, 200, 200]);
+    let h = world
+        .spawn_object("bar", &bar, &translation([0.0, -0.5, top]))
+        .unwrap();
+    let w = narrowest_width_m(&world, h).unwrap();
+    assert!((w - 0.06).abs() < 2e-3, "{w}");
+}
+
+fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::results::RunResults {
+    let setup = GraspSetup {
+        scenario,
+        rounds,
+        seed: 1,
+        objects: Some(ObjectSource::Meshes {
+            dir: dir.to_path_buf(),
+            units: lgdm_pointcloud::import::MeshUnits::parse(&["m"]).unwrap(),
+        }),
+        ..GraspSetup::default()
+    };
+    GraspJob::prepare(setup)
+        .unwrap()
+        .run(builtin_source("analytic", 1).unwrap().as_mut(), |_| {})
+        .unwrap()
+}
+
+#[test]
+fn a_can_wider_than_the_stroke_is_named_and_said_to_be_too_wide() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A 12 cm can: wider than the default 85 mm stroke whichever way the jaws turn.
+    std::fs::create_dir_all(tmp.path().join("can")).unwrap();
+    std::fs::write(tmp.path().join("can/wide_can.obj"), obj(&can(0.12, 0.08))).unwrap();
+    let r = grasp_run(tmp.path(), Scenario::Isolated, 2);
+    assert!(!r.attempts.is_empty());
+    for a in &r.attempts {
+        assert_eq!(a.reason, Some(FailureReason::WiderThanGripper), "{a:?}");
+        assert_eq!(a.object.as_deref(), Some("wide_can"));
+    }
+    assert_eq!(
+        r.summary.failure_reasons["wider_than_gripper"],
+        r.attempts.len()
+    );
+}
+
+#[test]
+fn no_grasp_on_a_cluttered_table_names_an_object() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (name, d) in [("wide_a", 0.12), ("wide_b", 0.13), ("wide_c", 0.11)] {
+        std::fs::create_dir_all(tmp.path().join(name)).unwrap();
+        std::fs::write(
+            tmp.path().join(format!("{name}/{name}.obj")),
+            obj(&can(d, 0.06)),
+        )
+        .unwrap();
+    }
+    let r = grasp_run(tmp.path(), Scenario::Scattered, 1);
+    let none: Vec<_> = r.attempts.iter().filter(|a| a.grasp.is_none()).collect();
+    assert!(!none.is_empty(), "only wide cans: no grasp is found");
+    for a in none {
+        assert!(a.object.is_some(), "attributed: {a:?}");
+        assert_eq!(a.reason, Some(FailureReason::WiderThanGripper), "{a:?}");
+    }
+}
