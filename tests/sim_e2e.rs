@@ -36,8 +36,9 @@ fn sim(out: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
-const REASONS: [&str; 7] = [
+const REASONS: [&str; 8] = [
     "no_grasp_found",
+    "wider_than_gripper",
     "unreachable",
     "collision_on_approach",
     "missed",
@@ -426,4 +427,79 @@ fn bad_input_is_a_clear_error_and_writes_nothing() {
         sim(&out, &["--grasp", "network"]),
         &["built without the `ae` feature", "--features ae"],
     );
+}
+
+/// Issue 23: every run records the full config it used (`sim.toml`), `--config` of that file
+/// reproduces the run, `--gripper` selects a preset, and a bad config is refused naming the
+/// file and the field.
+#[test]
+fn a_runs_sim_toml_reproduces_it_and_bad_configs_name_the_field() {
+    let base = work_dir().join("config");
+    let first = base.join("first");
+    check(
+        sim(
+            &first,
+            &["--rounds", "2", "--seed", "4", "--gripper", "2f-140"],
+        ),
+        "sim grasp --gripper 2f-140",
+    );
+    let text = std::fs::read_to_string(first.join("sim.toml")).unwrap();
+    assert!(text.contains("stroke_m = 0.14"), "{text}");
+    let config = base.join("sim.toml");
+    std::fs::write(&config, &text).unwrap();
+    let again = base.join("again");
+    let config_arg = config.to_str().unwrap();
+    check(
+        sim(
+            &again,
+            &["--rounds", "2", "--seed", "4", "--config", config_arg],
+        ),
+        "sim grasp --config",
+    );
+    assert_eq!(
+        without_wall(&read_results(&first)),
+        without_wall(&read_results(&again)),
+        "--config of a run's sim.toml plays the same run"
+    );
+    assert_eq!(
+        std::fs::read_to_string(again.join("sim.toml")).unwrap(),
+        text
+    );
+
+    for (bad, needles) in [
+        (
+            "[robot.gripper]\nstroke_m = -1.0\n",
+            vec!["bad.toml", "gripper.stroke_m"],
+        ),
+        (
+            "[robot.gripper]\nstroke = 0.1\n",
+            vec!["bad.toml", "stroke"],
+        ),
+        ("[cameras\n", vec!["bad.toml"]),
+    ] {
+        let path = base.join("bad.toml");
+        std::fs::write(&path, bad).unwrap();
+        let out = base.join("bad-run");
+        assert_fails(
+            sim(&out, &["--rounds", "1", "--config", path.to_str().unwrap()]),
+            &needles,
+        );
+        assert!(!out.exists(), "{bad}: nothing written");
+    }
+    // The run's own config inside --out is an input: never written over.
+    let own = first.join("sim.toml");
+    assert_fails(
+        sim(
+            &first,
+            &[
+                "--rounds",
+                "1",
+                "--force",
+                "--config",
+                own.to_str().unwrap(),
+            ],
+        ),
+        &["--config", "inside --out"],
+    );
+    assert_eq!(std::fs::read_to_string(&own).unwrap(), text);
 }

@@ -37,6 +37,17 @@ pub struct SimConfig {
 }
 
 impl SimConfig {
+    /// Every field as TOML (what a run directory's [`crate::run_dir::CONFIG_FILE`] holds).
+    pub fn to_toml(&self) -> Result<String, String> {
+        toml::to_string(self).map_err(|e| e.to_string())
+    }
+
+    /// A config from TOML text: fields left out take their defaults, an unknown field is an
+    /// error naming it and where it is. Not validated here ([`SimConfig::validate`]).
+    pub fn from_toml(text: &str) -> Result<SimConfig, String> {
+        toml::from_str(text).map_err(|e| e.to_string().trim_end().to_string())
+    }
+
     /// The gripper as grasp sources see it: the robot's stroke and finger width, the dataset's
     /// finger reach, clearance and friction.
     pub fn grasp_spec(&self) -> GraspSpec {
@@ -45,5 +56,22 @@ impl SimConfig {
             finger_width_m: self.robot.gripper.finger_width_m,
             ..GraspSpec::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_whole_config_round_trips_through_toml() {
+        let mut c = SimConfig::default();
+        c.robot.gripper.stroke_m = 0.14;
+        let text = c.to_toml().unwrap();
+        assert_eq!(SimConfig::from_toml(&text).unwrap(), c);
+        // Left out: the defaults; unknown: named.
+        assert_eq!(SimConfig::from_toml("").unwrap(), SimConfig::default());
+        let e = SimConfig::from_toml("[robot.gripper]\nstroke = 0.1\n").unwrap_err();
+        assert!(e.contains("stroke"), "{e}");
     }
 }

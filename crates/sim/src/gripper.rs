@@ -126,7 +126,50 @@ impl Default for GripperConfig {
     }
 }
 
+/// The grippers the sim has presets for ([`GripperConfig::preset`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GripperModel {
+    /// Robotiq 2F-85: 85 mm stroke, 20–235 N grip force (Robotiq's figures). The default: the
+    /// grasp labels and the shipped network's jaw are this gripper's.
+    #[default]
+    Robotiq2F85,
+    /// Robotiq 2F-140: 140 mm stroke, 10–125 N grip force (Robotiq's figures); longer fingers
+    /// on a longer body. The paper's pybullet robot carries it.
+    Robotiq2F140,
+}
+
+impl GripperModel {
+    /// Every model.
+    pub const ALL: [GripperModel; 2] = [GripperModel::Robotiq2F85, GripperModel::Robotiq2F140];
+
+    /// `2f-85` or `2f-140`.
+    pub fn name(self) -> &'static str {
+        match self {
+            GripperModel::Robotiq2F85 => "2f-85",
+            GripperModel::Robotiq2F140 => "2f-140",
+        }
+    }
+}
+
 impl GripperConfig {
+    /// The preset of `model`. Strokes and force ranges are Robotiq's published figures; the
+    /// per-finger squeeze (40 N, 80 N in all) lies inside both ranges, and each motor's limit
+    /// (60 N, 120 N in all) inside the 2F-140's 125 N. Pad sizes and the tool length are
+    /// approximations of the real fingers (the 2F-140's are ~15 mm longer, its body ~5 cm
+    /// longer from the flange), not datasheet values.
+    pub fn preset(model: GripperModel) -> GripperConfig {
+        match model {
+            GripperModel::Robotiq2F85 => GripperConfig::default(),
+            GripperModel::Robotiq2F140 => GripperConfig {
+                stroke_m: 0.14,
+                finger_length_m: 0.065,
+                tool_length_m: 0.2,
+                ..GripperConfig::default()
+            },
+        }
+    }
+
     /// Checks every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), WorldError> {
         for (field, value) in [

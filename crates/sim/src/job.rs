@@ -275,6 +275,7 @@ impl GraspJob {
                 source,
                 JobKind::Grasp(Box::new(self.setup.clone())),
             ))?;
+            d.write_config(&self.setup.config)?;
         }
         self.play_into(dir, source, None, on_progress)
     }
@@ -684,6 +685,7 @@ impl PickPlaceJob {
                 source,
                 JobKind::PickPlace(Box::new(self.setup.clone())),
             ))?;
+            d.write_config(&self.setup.config)?;
         }
         self.play_into(dir, source, encoder, None, on_progress)
     }

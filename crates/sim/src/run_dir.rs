@@ -40,6 +40,10 @@ pub const ROUNDS_DIR: &str = "rounds";
 /// what `resume` plays again.
 pub const JOB_FILE: &str = "job.json";
 
+/// Every constant the run used ([`crate::config::SimConfig`] as TOML), written with the job:
+/// `--config RUN_DIR/sim.toml` runs with the same world, robot, cameras and attempts.
+pub const CONFIG_FILE: &str = "sim.toml";
+
 /// Where an unfinished run is: written after every round, removed when the run is done
 /// ([`Checkpoint`]).
 pub const PROGRESS_FILE: &str = "progress.json";
@@ -96,7 +100,13 @@ fn classify(name: &str, is_dir: bool) -> Entry {
     }
     let ours = matches!(
         name,
-        RESULTS_FILE | SUMMARY_FILE | MODEL_FILE | MODEL_LABELS_FILE | JOB_FILE | PROGRESS_FILE
+        RESULTS_FILE
+            | SUMMARY_FILE
+            | MODEL_FILE
+            | MODEL_LABELS_FILE
+            | JOB_FILE
+            | CONFIG_FILE
+            | PROGRESS_FILE
     ) || name.ends_with(".png")
         || temporary(name);
     if ours && !is_dir {
@@ -177,6 +187,13 @@ impl SimRunDir {
     pub fn write_job(&self, job: &impl Serialize) -> Result<(), SimError> {
         let text = serde_json::to_string_pretty(job).map_err(|e| dir_error(&self.dir, e))?;
         self.write_file(JOB_FILE, (text + "\n").as_bytes())
+    }
+
+    /// Writes [`CONFIG_FILE`].
+    pub fn write_config(&self, config: &crate::config::SimConfig) -> Result<(), SimError> {
+        let text = config.to_toml().map_err(|e| dir_error(&self.dir, e))?;
+        let header = "# Every constant of this run (lgdm sim --config FILE takes it back).\n";
+        self.write_file(CONFIG_FILE, format!("{header}{text}").as_bytes())
     }
 
     /// Reads the [`JOB_FILE`] of `dir`.

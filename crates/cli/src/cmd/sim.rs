@@ -22,6 +22,7 @@ use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::config::SimConfig;
+use lgdm_sim::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
     PickPlaceSetup,
@@ -190,18 +191,53 @@ fn report_meshes(library: &ObjectLibrary, reporter: &Reporter) {
     }
 }
 
-/// The constants the options set: the cameras' drawing and the colliders.
-fn sim_config(args: &RobotArgs) -> SimConfig {
-    let mut config = SimConfig::default();
-    config.cameras.draw = match args.draw {
-        DrawArg::Mesh => ObjectDrawing::Mesh,
-        DrawArg::Collider => ObjectDrawing::Collider,
+/// The run's constants: `--config`'s file (else the defaults), with what the options set — the
+/// gripper, the cameras' drawing, the colliders — on top. Checked whole, naming the field.
+fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
+    if let (Some(config), Some(out)) = (&args.config, &args.out)
+        && let (Ok(config), Ok(out)) = (config.canonicalize(), out.canonicalize())
+        && config.starts_with(&out)
+    {
+        bail!(
+            "--config {} is inside --out {}: a run does not write over its inputs; copy it out \
+             first",
+            config.display(),
+            out.display()
+        );
+    }
+    let mut config = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("--config {}", path.display()))?;
+            SimConfig::from_toml(&text)
+                .map_err(|e| anyhow::anyhow!("--config {}: {e}", path.display()))?
+        }
+        None => SimConfig::default(),
     };
-    config.shapes.shape = match args.shapes {
-        ShapesArg::Hull => ObjectShape::Hull,
-        ShapesArg::Decomposition => ObjectShape::Decomposition,
-    };
-    config
+    if let Some(gripper) = args.gripper {
+        config.robot.gripper = GripperConfig::preset(match gripper {
+            GripperArg::Robotiq2F85 => GripperModel::Robotiq2F85,
+            GripperArg::Robotiq2F140 => GripperModel::Robotiq2F140,
+        });
+    }
+    if let Some(draw) = args.draw {
+        config.cameras.draw = match draw {
+            DrawArg::Mesh => ObjectDrawing::Mesh,
+            DrawArg::Collider => ObjectDrawing::Collider,
+        };
+    }
+    if let Some(shapes) = args.shapes {
+        config.shapes.shape = match shapes {
+            ShapesArg::Hull => ObjectShape::Hull,
+            ShapesArg::Decomposition => ObjectShape::Decomposition,
+        };
+    }
+    if let Some(path) = &args.config {
+        config
+            .validate()
+            .map_err(|e| anyhow::anyhow!("--config {}: {e}", path.display()))?;
+    }
+    Ok(config)
 }
 
 /// `--record` / `--record-rounds`.
@@ -260,7 +296,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
                 rounds: args.rounds,
                 seed: args.seed,
                 objects: Some(objects(robot, procedural)?),
-                config: sim_config(robot),
+                config: sim_config(robot)?,
                 record: record_config(robot),
                 out: output(robot),
                 ae_checkpoint: robot.ae_checkpoint.clone(),
@@ -417,7 +453,7 @@ fn new_pick_place(args: &PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
         encoder: (args.encoder.name().to_string(), encoder_dim),
         targets,
         arrive_after: args.arrive_after,
-        config: sim_config(robot),
+        config: sim_config(robot)?,
         record: record_config(robot),
         out: output(robot),
         ae_checkpoint: robot.ae_checkpoint.clone(),

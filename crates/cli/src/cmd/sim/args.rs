@@ -11,8 +11,10 @@ use crate::progress::ProgressMode;
 
 /// The options of every robot run that describe it: none of them may accompany `--resume`
 /// (the run's job.json holds them).
-const ROBOT_FLAGS: [&str; 10] = [
+const ROBOT_FLAGS: [&str; 12] = [
     "grasp",
+    "config",
+    "gripper",
     "out",
     "force",
     "meshes",
@@ -122,6 +124,17 @@ pub struct ObjectsArgs {
     pub from: Option<PathBuf>,
 }
 
+/// The grippers (`--gripper`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GripperArg {
+    /// Robotiq 2F-85: 85 mm stroke.
+    #[value(name = "2f-85")]
+    Robotiq2F85,
+    /// Robotiq 2F-140: 140 mm stroke, longer fingers (the paper's pybullet robot's).
+    #[value(name = "2f-140")]
+    Robotiq2F140,
+}
+
 /// The scenarios (`--scenario`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ScenarioArg {
@@ -196,12 +209,20 @@ pub struct RobotArgs {
     /// (as `gen-dataset --units`); guessed from the size when not given.
     #[arg(long, value_name = "[FILE=]UNIT", requires = "meshes")]
     pub units: Vec<String>,
-    /// What the cameras draw for an object.
-    #[arg(long, value_enum, default_value_t = DrawArg::Collider)]
-    pub draw: DrawArg,
-    /// The objects' collider shapes in the physics.
-    #[arg(long, value_enum, default_value_t = ShapesArg::Decomposition)]
-    pub shapes: ShapesArg,
+    /// Every constant of the world, arm, gripper, cameras, attempts and tables from a TOML file
+    /// (fields left out keep their defaults; a run directory's sim.toml reproduces its run).
+    /// The options below override it.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// The gripper (default: the config's, else the 2F-85).
+    #[arg(long, value_enum)]
+    pub gripper: Option<GripperArg>,
+    /// What the cameras draw for an object (default: the config's, else collider).
+    #[arg(long, value_enum)]
+    pub draw: Option<DrawArg>,
+    /// The objects' collider shapes in the physics (default: the config's, else decomposition).
+    #[arg(long, value_enum)]
+    pub shapes: Option<ShapesArg>,
     /// Record the rounds for Foxglove: rounds/round-NNNN.mcap and a storyboard
     /// rounds/round-NNNN.png per round.
     #[arg(long)]
