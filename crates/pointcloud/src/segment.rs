@@ -52,6 +52,16 @@ pub struct SegmentParams {
     pub plane_iterations: usize,
     /// Components with fewer pixels are noise, not objects (default: 50).
     pub min_pixels: usize,
+    /// Split touching objects (default: false): two neighbouring pixels belong to one object
+    /// unless both their depths differ by more than `edge_depth_m` and their colours by more
+    /// than `edge_colour` — the edge where one object meets another of another colour and
+    /// height. A single object's own steps (a mug's rim over its inside) share its colour.
+    pub split_edges: bool,
+    /// Depth step of an edge between touching objects (m; default 0.01).
+    pub edge_depth_m: f32,
+    /// Colour difference of an edge between touching objects: the sum of the absolute RGB
+    /// differences (0–765; default 60).
+    pub edge_colour: u32,
 }
 
 impl Default for SegmentParams {
@@ -62,6 +72,9 @@ impl Default for SegmentParams {
             plane_step_px: 4,
             plane_iterations: 200,
             min_pixels: 50,
+            split_edges: false,
+            edge_depth_m: 0.01,
+            edge_colour: 60,
         }
     }
 }
@@ -169,6 +182,12 @@ impl SegmentParams {
         }
         if !(1..=100_000).contains(&self.plane_iterations) {
             return bad("plane_iterations", "must be in 1..=100000");
+        }
+        if !(self.edge_depth_m.is_finite() && self.edge_depth_m > 0.0) {
+            return bad("edge_depth_m", "must be positive");
+        }
+        if self.edge_colour > 765 {
+            return bad("edge_colour", "must be in 0..=765");
         }
         Ok(())
     }
@@ -319,6 +338,16 @@ pub fn objects_above(
     let above: Vec<bool> = (0..n)
         .map(|i| valid_depth(frame.depth_m[i]) && table.height_m(point(i)) >= params.min_height_m)
         .collect();
+    // Whether neighbours `i` and `j` (both above the table) are one object.
+    let joined = |i: usize, j: usize| {
+        if !params.split_edges {
+            return true;
+        }
+        let step = (frame.depth_m[i] - frame.depth_m[j]).abs();
+        let [a, b] = [frame.rgb[i], frame.rgb[j]];
+        let colour: u32 = (0..3).map(|k| u32::from(a[k].abs_diff(b[k]))).sum();
+        !(step > params.edge_depth_m && colour > params.edge_colour)
+    };
     let mut seen = vec![false; n];
     let mut objects = Vec::new();
     let mut stack = Vec::new();
@@ -339,7 +368,7 @@ pub fn objects_above(
                         continue;
                     }
                     let j = ny as usize * w + nx as usize;
-                    if above[j] && !seen[j] {
+                    if above[j] && !seen[j] && joined(i, j) {
                         seen[j] = true;
                         stack.push(j);
                     }
@@ -452,6 +481,87 @@ mod tests {
                 o.top_height_m
             );
             assert_eq!(o.points.len(), o.pixels.len());
+        }
+    }
+
+    /// Two boxes pushed together (a red 10 cm one and a blue 6 cm one, touching along x = 0)
+    /// and a two-step object of one colour, seen from 0.6 m straight above.
+    fn touching_boxes() -> (Camera, RgbdFrame) {
+        let camera = Camera::new(
+            Intrinsics::kinect_qvga(),
+            look_at([0.0, 0.0, 0.6], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+        );
+        let table = table_mesh();
+        let red = crate::mesh::Mesh::cuboid([-0.03, 0.0, 0.05], [0.06, 0.06, 0.1], [200, 30, 30]);
+        let blue = crate::mesh::Mesh::cuboid([0.03, 0.0, 0.03], [0.06, 0.06, 0.06], [30, 60, 200]);
+        // One green object with a step: a 4 cm base and a narrower 8 cm tower in it.
+        let mut stepped =
+            crate::mesh::Mesh::cuboid([0.0, -0.12, 0.02], [0.08, 0.06, 0.04], [40, 160, 40]);
+        stepped.append(&crate::mesh::Mesh::cuboid(
+            [0.0, -0.12, 0.04],
+            [0.03, 0.03, 0.08],
+            [40, 160, 40],
+        ));
+        let items = [
+            RenderItem {
+                mesh: &table,
+                world_from_object: Pose::identity(),
+                label: 1,
+            },
+            RenderItem {
+                mesh: &red,
+                world_from_object: Pose::identity(),
+                label: 2,
+            },
+            RenderItem {
+                mesh: &blue,
+                world_from_object: Pose::identity(),
+                label: 3,
+            },
+            RenderItem {
+                mesh: &stepped,
+                world_from_object: Pose::identity(),
+                label: 4,
+            },
+        ];
+        let frame = render(&camera, &items);
+        (camera, frame)
+    }
+
+    #[test]
+    fn touching_objects_of_other_colours_and_heights_are_split_on_request() {
+        let (camera, frame) = touching_boxes();
+        let plain = segment_objects(&frame, &camera.intrinsics, &SegmentParams::default()).unwrap();
+        assert_eq!(
+            plain.objects.len(),
+            2,
+            "the touching boxes are one component"
+        );
+        let split = SegmentParams {
+            split_edges: true,
+            ..SegmentParams::default()
+        };
+        let seg = segment_objects(&frame, &camera.intrinsics, &split).unwrap();
+        assert_eq!(
+            seg.objects.len(),
+            3,
+            "the boxes apart, the stepped object whole"
+        );
+        let mut tops: Vec<f32> = seg.objects.iter().map(|o| o.top_height_m).collect();
+        tops.sort_by(f32::total_cmp);
+        for (top, want) in tops.iter().zip([0.06, 0.08, 0.1]) {
+            assert!((top - want).abs() < 0.01, "{tops:?}");
+        }
+        // Each segment holds one object: one dominant colour channel (shading darkens the
+        // sides, it does not change the hue).
+        let hue = |c: &[u8; 3]| (0..3).max_by_key(|&k| c[k]).unwrap();
+        for o in &seg.objects {
+            let colours = o.points.colors.as_ref().unwrap();
+            let first = hue(&colours[0]);
+            assert!(
+                colours.iter().all(|c| hue(c) == first),
+                "a segment mixes objects"
+            );
         }
     }
 
