@@ -240,8 +240,9 @@ impl AttemptConfig {
 pub enum FailureReason {
     /// The source proposed no grasp that could be placed in the world.
     NoGraspFound,
-    /// No grasp, and the object aimed at is wider than the gripper's stroke whichever way the
-    /// jaws turn (its collider's narrowest horizontal width): no top-down grasp can take it.
+    /// No grasp, and the object aimed at is solid and wider than the gripper's stroke whichever
+    /// way the jaws turn: no top-down grasp can take it (a hollow object such as a bowl is
+    /// never said to be, since a grasp can take its wall).
     WiderThanGripper,
     /// The arm cannot reach the pre-grasp, the grasp or the basket.
     Unreachable,

@@ -217,17 +217,9 @@ fn no_grasp() -> Execution {
 /// turn.
 const WIDTH_DIRECTIONS: usize = 180;
 
-/// The narrowest horizontal width of the object's collider (m): the least, over the jaws'
-/// directions about world z, of its extent along that direction — what a top-down parallel
-/// grasp must open to.
-pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
-    let pose = world.object_pose(object).ok()?;
-    let points: Vec<[f32; 3]> = world
-        .object_hull_points_m(object)
-        .ok()?
-        .into_iter()
-        .map(|p| lgdm_pointcloud::math::transform_point(&pose, p))
-        .collect();
+/// The narrowest horizontal width of a point set (m): the least, over the jaws' directions
+/// about world z, of its extent along that direction.
+fn narrowest_width(points: &[[f32; 3]]) -> Option<f32> {
     if points.is_empty() {
         return None;
     }
@@ -244,13 +236,59 @@ pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
         .reduce(f32::min)
 }
 
+/// The narrowest horizontal width of the object's collider (m): the least, over the jaws'
+/// directions about world z, of its extent along that direction — what a top-down parallel
+/// grasp around the whole object must open to.
+pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
+    let pose = world.object_pose(object).ok()?;
+    let points: Vec<[f32; 3]> = world
+        .object_hull_points_m(object)
+        .ok()?
+        .into_iter()
+        .map(|p| lgdm_pointcloud::math::transform_point(&pose, p))
+        .collect();
+    narrowest_width(&points)
+}
+
+/// Below this share of its hull's volume an object is hollow or open (a bowl, a mug, a
+/// teapot with its handle): a grasp can take a wall, a rim or a handle, so its overall width
+/// says nothing about whether the gripper can take it. A closed can or a fruit fills its hull.
+pub const SOLID_FRACTION: f32 = 0.8;
+
+/// The share of its convex hull's volume the object's mesh encloses, when the mesh encloses a
+/// volume (a closed mesh).
+pub fn solid_fraction(world: &World, object: ObjectHandle) -> Option<f32> {
+    use rapier3d::parry::mass_properties::MassProperties;
+    use rapier3d::parry::shape::Shape;
+    use rapier3d::prelude::Vector as RVec;
+    let mesh = world.object_mesh(object).ok()?;
+    let vertices: Vec<RVec> = mesh.vertices.iter().map(|v| RVec::from_array(*v)).collect();
+    let mesh_volume = MassProperties::from_trimesh(1.0, &vertices, &mesh.triangles).mass();
+    let hull: Vec<RVec> = world
+        .object_hull_points_m(object)
+        .ok()?
+        .into_iter()
+        .map(RVec::from_array)
+        .collect();
+    let hull_volume = rapier3d::parry::shape::ConvexPolyhedron::from_convex_hull(&hull)?
+        .mass_properties(1.0)
+        .mass();
+    let f = mesh_volume / hull_volume;
+    (f.is_finite() && f > 0.0 && f <= 1.5).then_some(f)
+}
+
 impl<F: FnMut(Progress)> Runner<'_, F> {
     /// An attempt at `object` that tried no grasp: [`FailureReason::WiderThanGripper`] when the
-    /// object is wider than the stroke whichever way the jaws turn, else no grasp found.
+    /// object is wider than the stroke whichever way the jaws turn ([`narrowest_width_m`]) and
+    /// solid ([`solid_fraction`] at least [`SOLID_FRACTION`]), else no grasp found.
     fn no_grasp_at(&self, world: &World, object: Option<ObjectHandle>) -> Execution {
         let stroke = self.gripper.max_opening_m;
-        match object.and_then(|h| narrowest_width_m(world, h)) {
-            Some(width) if width > stroke => Execution {
+        let too_wide = object.is_some_and(|h| {
+            narrowest_width_m(world, h).is_some_and(|w| w > stroke)
+                && solid_fraction(world, h).is_some_and(|f| f >= SOLID_FRACTION)
+        });
+        match too_wide {
+            true => Execution {
                 reason: Some(FailureReason::WiderThanGripper),
                 ..Execution::default()
             },

@@ -8,7 +8,7 @@ use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_sim::attempt::FailureReason;
 use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource};
-use lgdm_sim::runner::narrowest_width_m;
+use lgdm_sim::runner::{narrowest_width_m, solid_fraction};
 use lgdm_sim::scenario::Scenario;
 use lgdm_sim::spec::builtin_source;
 use lgdm_sim::world::{World, WorldConfig};
@@ -41,6 +41,36 @@ fn the_narrowest_width_is_the_least_extent_over_the_jaw_directions() {
         .unwrap();
     let w = narrowest_width_m(&world, h).unwrap();
     assert!((w - 0.06).abs() < 2e-3, "{w}");
+}
+
+#[test]
+fn a_closed_can_fills_its_hull_and_an_open_bowl_does_not() {
+    let mut world = World::new(WorldConfig::default()).unwrap();
+    let top = world.config().table.top_z_m();
+    let can = world
+        .spawn_object("can", &can(0.12, 0.08), &translation([0.0, -0.5, top]))
+        .unwrap();
+    // A 12 cm bowl with 5 mm walls: outer profile up, over the rim, inner profile down.
+    let bowl_mesh = Mesh::lathe(
+        &[
+            [0.0, 0.0],
+            [0.06, 0.0],
+            [0.06, 0.05],
+            [0.055, 0.05],
+            [0.055, 0.005],
+            [0.0, 0.005],
+        ],
+        32,
+        [200, 200, 200],
+    );
+    let bowl = world
+        .spawn_object("bowl", &bowl_mesh, &translation([0.2, -0.5, top]))
+        .unwrap();
+    let f_can = solid_fraction(&world, can).unwrap();
+    let f_bowl = solid_fraction(&world, bowl).unwrap();
+    assert!(f_can > 0.95, "{f_can}");
+    assert!(f_bowl < 0.3, "{f_bowl}");
+    assert!(narrowest_width_m(&world, bowl).unwrap() > 0.11);
 }
 
 fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::results::RunResults {
