@@ -110,6 +110,12 @@ pub struct AttemptConfig {
     /// The carry's joint speed and acceleration limits as a fraction of the arm's (default
     /// 1.0: the arm's full limits; speeds scale by it, accelerations by its square). In (0, 1].
     pub carry_speed_scale: f64,
+    /// The widest opening grasp sources plan for (m; default none: the stroke). The analytic
+    /// source checks the fingers' lanes as if they descended this far open, so a long stroke
+    /// rules out grasps (a glass's rim) the commanded opening — the grasp's width plus
+    /// `opening_margin_m` — would leave room for; at most the stroke.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plan_opening_m: Option<f32>,
     /// Index of the target basket in the world's baskets (default 0, the reference tray at
     /// (0.7, 0, 0.685)).
     pub target_basket: usize,
@@ -157,6 +163,7 @@ impl Default for AttemptConfig {
             },
             carry_height_m: 1.03,
             carry_speed_scale: 1.0,
+            plan_opening_m: None,
             target_basket: 0,
             release_clearance_m: 0.03,
             release_wait_s: 0.3,
@@ -184,6 +191,14 @@ impl AttemptConfig {
             if !(value.is_finite() && value > 0.0) {
                 return bad(field, value);
             }
+        }
+        if let Some(w) = self.plan_opening_m
+            && !(w.is_finite() && w > 0.0)
+        {
+            return Err(AttemptError::InvalidConfig {
+                field: "plan_opening_m",
+                reason: format!("{w} must be positive and finite"),
+            });
         }
         if !(self.carry_speed_scale > 0.0 && self.carry_speed_scale <= 1.0) {
             return Err(AttemptError::InvalidConfig {
