@@ -110,12 +110,13 @@ pub struct AttemptConfig {
     /// The carry's joint speed and acceleration limits as a fraction of the arm's (default
     /// 1.0: the arm's full limits; speeds scale by it, accelerations by its square). In (0, 1].
     pub carry_speed_scale: f64,
-    /// The widest opening grasp sources plan for (m; default none: the stroke). The analytic
-    /// source checks the fingers' lanes as if they descended this far open, so a long stroke
-    /// rules out grasps (a glass's rim) the commanded opening — the grasp's width plus
-    /// `opening_margin_m` — would leave room for; at most the stroke.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub plan_opening_m: Option<f32>,
+    /// Narrower openings to plan for when the stroke found no grasp (m, tried in order; each
+    /// one at least as wide as the stroke is skipped; default [0.085]). The analytic source
+    /// checks the fingers' lanes as if they descended fully open, so a long stroke (the
+    /// 2F-140's 140 mm) rules out grasps — a glass's rim — that the commanded opening (the
+    /// grasp's width plus `opening_margin_m`) leaves room for; planning again for 85 mm finds
+    /// them. The 2F-85 never uses it.
+    pub fallback_openings_m: Vec<f32>,
     /// Index of the target basket in the world's baskets (default 0, the reference tray at
     /// (0.7, 0, 0.685)).
     pub target_basket: usize,
@@ -163,7 +164,7 @@ impl Default for AttemptConfig {
             },
             carry_height_m: 1.03,
             carry_speed_scale: 1.0,
-            plan_opening_m: None,
+            fallback_openings_m: vec![0.085],
             target_basket: 0,
             release_clearance_m: 0.03,
             release_wait_s: 0.3,
@@ -192,12 +193,20 @@ impl AttemptConfig {
                 return bad(field, value);
             }
         }
-        if let Some(w) = self.plan_opening_m
-            && !(w.is_finite() && w > 0.0)
+        if let Some(w) = self
+            .fallback_openings_m
+            .iter()
+            .find(|w| !(w.is_finite() && **w > 0.0))
         {
             return Err(AttemptError::InvalidConfig {
-                field: "plan_opening_m",
+                field: "fallback_openings_m",
                 reason: format!("{w} must be positive and finite"),
+            });
+        }
+        if self.fallback_openings_m.len() > 16 {
+            return Err(AttemptError::InvalidConfig {
+                field: "fallback_openings_m",
+                reason: format!("{} openings: at most 16", self.fallback_openings_m.len()),
             });
         }
         if !(self.carry_speed_scale > 0.0 && self.carry_speed_scale <= 1.0) {

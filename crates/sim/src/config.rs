@@ -48,16 +48,11 @@ impl SimConfig {
         toml::from_str(text).map_err(|e| e.to_string().trim_end().to_string())
     }
 
-    /// The gripper as grasp sources see it: the robot's stroke (or the narrower
-    /// `attempt.plan_opening_m`) and finger width, the dataset's finger reach, clearance and
-    /// friction.
+    /// The gripper as grasp sources see it: the robot's stroke and finger width, the dataset's
+    /// finger reach, clearance and friction.
     pub fn grasp_spec(&self) -> GraspSpec {
-        let stroke = self.robot.gripper.stroke_m;
         GraspSpec {
-            max_opening_m: self
-                .attempt
-                .plan_opening_m
-                .map_or(stroke, |w| w.min(stroke)),
+            max_opening_m: self.robot.gripper.stroke_m,
             finger_width_m: self.robot.gripper.finger_width_m,
             ..GraspSpec::default()
         }

@@ -364,7 +364,26 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             gripper: &self.gripper,
         };
         let source = &mut *self.source;
-        let grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
+        let mut grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
+        // Nothing for the full stroke: plan again for narrower openings (the attempt opens the
+        // fingers to the grasp's width plus a margin, not to the stroke).
+        for &opening in &self.spec.config.attempt.fallback_openings_m {
+            if !grasps.is_empty() {
+                break;
+            }
+            if opening >= self.gripper.max_opening_m {
+                continue;
+            }
+            let narrower = GraspSpec {
+                max_opening_m: opening,
+                ..self.gripper
+            };
+            let query = GraspQuery {
+                gripper: &narrower,
+                ..query
+            };
+            grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
+        }
         let decode = &self.spec.config.attempt.decode;
         Ok(clock.wall.time(Work::Perception, || {
             grasps

@@ -7,6 +7,8 @@ use std::path::Path;
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_sim::attempt::FailureReason;
+use lgdm_sim::config::SimConfig;
+use lgdm_sim::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource};
 use lgdm_sim::runner::{narrowest_width_m, solid_fraction};
 use lgdm_sim::scenario::Scenario;
@@ -74,6 +76,15 @@ fn a_closed_can_fills_its_hull_and_an_open_bowl_does_not() {
 }
 
 fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::results::RunResults {
+    grasp_run_with(dir, scenario, rounds, SimConfig::default())
+}
+
+fn grasp_run_with(
+    dir: &Path,
+    scenario: Scenario,
+    rounds: usize,
+    config: SimConfig,
+) -> lgdm_sim::results::RunResults {
     let setup = GraspSetup {
         scenario,
         rounds,
@@ -82,6 +93,7 @@ fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::results
             dir: dir.to_path_buf(),
             units: lgdm_pointcloud::import::MeshUnits::parse(&["m"]).unwrap(),
         }),
+        config,
         ..GraspSetup::default()
     };
     GraspJob::prepare(setup)
@@ -126,4 +138,29 @@ fn no_grasp_on_a_cluttered_table_names_an_object() {
         assert!(a.object.is_some(), "attributed: {a:?}");
         assert_eq!(a.reason, Some(FailureReason::WiderThanGripper), "{a:?}");
     }
+}
+
+/// The 2F-140 plans for its full 140 mm first, which leaves no lane for a finger inside a
+/// glass; planning again for 85 mm (the default fallback) finds the rim grasps the commanded
+/// opening has room for.
+#[test]
+fn a_long_stroke_falls_back_to_a_narrower_plan_for_a_glass() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(tmp.path().join("glass")).unwrap();
+    let glass = lgdm_pointcloud::objects::procedural_object("glass", 0, 0).unwrap();
+    std::fs::write(tmp.path().join("glass/glass_01.obj"), obj(&glass)).unwrap();
+    let mut config = SimConfig::default();
+    config.robot.gripper = GripperConfig::preset(GripperModel::Robotiq2F140);
+    let with = grasp_run_with(tmp.path(), Scenario::Isolated, 3, config.clone());
+    config.attempt.fallback_openings_m.clear();
+    let without = grasp_run_with(tmp.path(), Scenario::Isolated, 3, config);
+    assert!(
+        without.attempts.iter().all(|a| a.grasp.is_none()),
+        "full-stroke planning finds no grasp on the glass"
+    );
+    assert!(
+        with.attempts.iter().any(|a| a.grasp_success),
+        "the 85 mm plan grasps it: {:?}",
+        with.attempts.iter().map(|a| a.reason).collect::<Vec<_>>()
+    );
 }
