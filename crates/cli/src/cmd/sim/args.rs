@@ -26,49 +26,46 @@ const ROBOT_FLAGS: [&str; 12] = [
     "ae_checkpoint",
 ];
 
+/// `a` then `b`, in a constant (`N` must be their total length: checked when compiled).
+const fn concat<const A: usize, const B: usize, const N: usize>(
+    a: [&'static str; A],
+    b: [&'static str; B],
+) -> [&'static str; N] {
+    assert!(A + B == N, "concat: N must be A + B");
+    let mut out = [""; N];
+    let mut i = 0;
+    while i < A {
+        out[i] = a[i];
+        i += 1;
+    }
+    while i < N {
+        out[i] = b[i - A];
+        i += 1;
+    }
+    out
+}
+
 /// [`ROBOT_FLAGS`] and `sim grasp`'s own.
-const GRASP_FLAGS: [&str; 14] = [
-    ROBOT_FLAGS[0],
-    ROBOT_FLAGS[1],
-    ROBOT_FLAGS[2],
-    ROBOT_FLAGS[3],
-    ROBOT_FLAGS[4],
-    ROBOT_FLAGS[5],
-    ROBOT_FLAGS[6],
-    ROBOT_FLAGS[7],
-    ROBOT_FLAGS[8],
-    ROBOT_FLAGS[9],
-    "scenario",
-    "rounds",
-    "seed",
-    "instances",
-];
+const GRASP_FLAGS: [&str; 16] = concat(ROBOT_FLAGS, ["scenario", "rounds", "seed", "instances"]);
 
 /// [`ROBOT_FLAGS`] and `sim pick-place`'s own (packing's `--targets` conflicts on its own).
-const PICK_PLACE_FLAGS: [&str; 22] = [
-    ROBOT_FLAGS[0],
-    ROBOT_FLAGS[1],
-    ROBOT_FLAGS[2],
-    ROBOT_FLAGS[3],
-    ROBOT_FLAGS[4],
-    ROBOT_FLAGS[5],
-    ROBOT_FLAGS[6],
-    ROBOT_FLAGS[7],
-    ROBOT_FLAGS[8],
-    ROBOT_FLAGS[9],
-    "scenario",
-    "rounds",
-    "attempts",
-    "seed",
-    "objects",
-    "object_seed",
-    "model",
-    "no_replay",
-    "learn_always",
-    "encoder",
-    "confidence",
-    "arrive_after",
-];
+const PICK_PLACE_FLAGS: [&str; 24] = concat(
+    ROBOT_FLAGS,
+    [
+        "scenario",
+        "rounds",
+        "attempts",
+        "seed",
+        "objects",
+        "object_seed",
+        "model",
+        "no_replay",
+        "learn_always",
+        "encoder",
+        "confidence",
+        "arrive_after",
+    ],
+);
 
 /// Arguments of `lgdm sim`.
 #[derive(Debug, ClapArgs)]
