@@ -321,12 +321,7 @@ impl MeshUnits {
     /// Checks the per-file names: `<category>/<file>` with `/`, inside the directory.
     pub fn check(&self) -> Result<(), String> {
         for file in self.files.keys() {
-            let parts: Vec<&str> = file.split('/').collect();
-            if parts.len() != 2
-                || parts
-                    .iter()
-                    .any(|p| p.is_empty() || *p == "." || *p == ".." || p.contains('\\'))
-            {
+            if !is_file_key(file) {
                 return Err(format!(
                     "per-file unit for `{file}`: name the file as <category>/<file> relative to \
                      the meshes directory (e.g. `mug/mug_01.obj`)"
@@ -344,6 +339,16 @@ impl MeshUnits {
             .map(|&u| (u, UnitSource::GivenForFile))
             .or(self.all.map(|u| (u, UnitSource::Given)))
     }
+}
+
+/// Whether `file` names a library file as `<category>/<file>`: two plain parts, inside the
+/// meshes directory (how `--units` and `objects.toml` name a file).
+pub(crate) fn is_file_key(file: &str) -> bool {
+    let parts: Vec<&str> = file.split('/').collect();
+    parts.len() == 2
+        && parts
+            .iter()
+            .all(|p| !(p.is_empty() || *p == "." || *p == ".." || p.contains('\\')))
 }
 
 /// How a mesh's unit was chosen.

@@ -204,12 +204,7 @@ impl Sidecar {
     pub fn check(&self) -> Result<(), String> {
         self.all.check("all.")?;
         for (file, props) in &self.files {
-            let parts: Vec<&str> = file.split('/').collect();
-            if parts.len() != 2
-                || parts
-                    .iter()
-                    .any(|p| p.is_empty() || *p == "." || *p == ".." || p.contains('\\'))
-            {
+            if !crate::import::is_file_key(file) {
                 return Err(format!(
                     "files.\"{file}\": name the file as <category>/<file> relative to the \
                      meshes directory (e.g. \"mug/mug_01.stl\")"
