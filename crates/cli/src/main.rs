@@ -97,7 +97,10 @@ mod resume_conflicts {
                 let mut argv = vec!["lgdm", "sim", sub, "--resume", "D"];
                 argv.extend_from_slice(option);
                 let err = Cli::try_parse_from(&argv).expect_err(&format!("{argv:?}"));
-                assert!(err.to_string().contains("cannot be used with"), "{argv:?}: {err}");
+                assert!(
+                    err.to_string().contains("cannot be used with"),
+                    "{argv:?}: {err}"
+                );
             }
         }
     }
