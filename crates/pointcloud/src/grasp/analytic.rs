@@ -81,6 +81,7 @@ use std::collections::HashSet;
 use std::f32::consts::PI;
 
 use nalgebra::{Matrix3, SymmetricEigen};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::decode::{DecodedGrasp, wrap_angle};
@@ -851,8 +852,13 @@ impl HeightMap {
     fn sample(&self, field: &[f32], p: [f32; 2], outside: f32) -> f32 {
         let fx = (p[0] - self.x0) / self.cell - 0.5;
         let fy = (p[1] - self.y0) / self.cell - 0.5;
-        let (ix, iy) = (fx.floor(), fy.floor());
-        if !(ix >= 0.0 && iy >= 0.0 && ix + 1.0 < self.nx as f32 && iy + 1.0 < self.ny as f32) {
+        // Truncation is the floor for the non-negative (and `floor` is a libm call where SSE4.1
+        // is not enabled: a fifth of the search's time); NaN and negatives are outside.
+        if !(fx >= 0.0 && fy >= 0.0) {
+            return outside;
+        }
+        let (ix, iy) = ((fx as usize) as f32, (fy as usize) as f32);
+        if !(ix + 1.0 < self.nx as f32 && iy + 1.0 < self.ny as f32) {
             return outside;
         }
         let (tx, ty) = (fx - ix, fy - iy);
@@ -1003,6 +1009,16 @@ struct Slice {
     worst_angle: f32,
 }
 
+/// A (centre, axis) moved to its contacts' midpoint ([`Search::moved`]).
+#[derive(Debug, Clone, Copy)]
+struct Moved {
+    centre: [f32; 2],
+    /// The axis it was found with.
+    angle: f32,
+    /// The axis turned to the walls.
+    refined: f32,
+}
+
 struct Search<'a> {
     map: &'a HeightMap,
     gripper: &'a GraspSpec,
@@ -1015,71 +1031,40 @@ impl Search<'_> {
         let map = self.map;
         let p = self.params;
         let step = ((p.grid_step_m / map.cell).round() as usize).max(1);
-        let mut found: Vec<Candidate> = Vec::new();
-        // (Centre cell, angle in degrees) already evaluated after moving to the midpoint.
+        let centres: Vec<usize> = object_cells
+            .iter()
+            .copied()
+            .filter(|&k| (k % map.nx).is_multiple_of(step) && (k / map.nx).is_multiple_of(step))
+            .collect();
+        // 1. Every (centre, axis) on the grid, in parallel: moved to the contacts' midpoint,
+        //    the axis aligned with the contact normals.
+        let moved: Vec<Vec<Option<Moved>>> = centres
+            .par_iter()
+            .map(|&k| {
+                let c = map.cell_centre(k);
+                let top = map.top(c);
+                (0..p.num_angles)
+                    .map(|a| self.moved(c, a as f32 * PI / p.num_angles as f32, top))
+                    .collect()
+            })
+            .collect();
+        // 2. In grid order (so the result never depends on the threads): a (midpoint cell,
+        //    degree) already taken by an earlier centre is not evaluated again.
         let mut seen: HashSet<(i32, i32, i32)> = HashSet::new();
-        for &k in object_cells {
-            let (i, j) = (k % map.nx, k / map.nx);
-            if i % step != 0 || j % step != 0 {
-                continue;
-            }
-            let c = map.cell_centre(k);
-            let top = map.top(c);
-            for a in 0..p.num_angles {
-                let angle = a as f32 * PI / p.num_angles as f32;
-                let Some(first) = self.evaluate(c, angle, top) else {
-                    continue;
-                };
-                // Move to the contacts' midpoint; align the axis with the contact normals.
-                let axis = unit(angle);
-                let mid = (first.s_plus + first.s_minus) / 2.0;
-                let m = [c[0] + axis[0] * mid, c[1] + axis[1] * mid];
-                // The walls' slope across the jaw; without it, the contact normals.
-                let refined = match first.wall_slope {
-                    Some(slope) => (angle - slope.atan()).rem_euclid(PI),
-                    None => {
-                        let [n_plus, n_minus] = first.normals;
-                        let ideal = [n_plus[0] - n_minus[0], n_plus[1] - n_minus[1]];
-                        ideal[1].atan2(ideal[0]).rem_euclid(PI)
-                    }
-                };
-                let key = |a: f32| {
-                    (
-                        (m[0] / map.cell).round() as i32,
-                        (m[1] / map.cell).round() as i32,
-                        a.to_degrees().round() as i32,
-                    )
-                };
-                if !seen.insert(key(refined)) {
-                    continue;
-                }
-                let top_m = map.top(m);
-                let mut tries = vec![refined];
-                if angle_between(refined, angle) > 1e-3 {
-                    tries.push(angle);
-                }
-                for angle in tries {
-                    let Some(eval) = self.evaluate(m, angle, top_m) else {
-                        continue;
-                    };
-                    let shift = (eval.s_plus + eval.s_minus) / 2.0;
-                    if shift.abs() > 1.5 * map.cell {
-                        continue;
-                    }
-                    let centroid_distance =
-                        (m[0] - self.centroid[0]).hypot(m[1] - self.centroid[1]);
-                    found.push(Candidate {
-                        centre: m,
-                        angle,
-                        axis: unit(angle),
-                        eval,
-                        quality: self.quality(&eval, centroid_distance),
-                        centroid_distance,
-                    });
-                    break;
-                }
-            }
-        }
+        let unique: Vec<Moved> = moved
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|m| {
+                seen.insert((
+                    (m.centre[0] / map.cell).round() as i32,
+                    (m.centre[1] / map.cell).round() as i32,
+                    m.refined.to_degrees().round() as i32,
+                ))
+            })
+            .collect();
+        // 3. Each moved centre evaluated again, in parallel, kept in grid order.
+        let mut found: Vec<Candidate> = unique.par_iter().filter_map(|m| self.settle(m)).collect();
         // Best first; ties by position, then angle.
         found.sort_by(|a, b| {
             b.quality
@@ -1103,6 +1088,60 @@ impl Search<'_> {
             }
         }
         kept
+    }
+
+    /// The first evaluation of (centre `c`, axis `angle`), moved to its contacts' midpoint with
+    /// the axis turned to the walls' slope (else the contact normals).
+    fn moved(&self, c: [f32; 2], angle: f32, top: f32) -> Option<Moved> {
+        let first = self.evaluate(c, angle, top)?;
+        let axis = unit(angle);
+        let mid = (first.s_plus + first.s_minus) / 2.0;
+        let centre = [c[0] + axis[0] * mid, c[1] + axis[1] * mid];
+        // The walls' slope across the jaw; without it, the contact normals.
+        let refined = match first.wall_slope {
+            Some(slope) => (angle - slope.atan()).rem_euclid(PI),
+            None => {
+                let [n_plus, n_minus] = first.normals;
+                let ideal = [n_plus[0] - n_minus[0], n_plus[1] - n_minus[1]];
+                ideal[1].atan2(ideal[0]).rem_euclid(PI)
+            }
+        };
+        Some(Moved {
+            centre,
+            angle,
+            refined,
+        })
+    }
+
+    /// A moved centre evaluated with the refined axis, else the original one: a candidate when
+    /// its contacts stay centred (within 1.5 cells).
+    fn settle(&self, m: &Moved) -> Option<Candidate> {
+        let map = self.map;
+        let top_m = map.top(m.centre);
+        let mut tries = vec![m.refined];
+        if angle_between(m.refined, m.angle) > 1e-3 {
+            tries.push(m.angle);
+        }
+        for angle in tries {
+            let Some(eval) = self.evaluate(m.centre, angle, top_m) else {
+                continue;
+            };
+            let shift = (eval.s_plus + eval.s_minus) / 2.0;
+            if shift.abs() > 1.5 * map.cell {
+                continue;
+            }
+            let centroid_distance =
+                (m.centre[0] - self.centroid[0]).hypot(m.centre[1] - self.centroid[1]);
+            return Some(Candidate {
+                centre: m.centre,
+                angle,
+                axis: unit(angle),
+                eval,
+                quality: self.quality(&eval, centroid_distance),
+                centroid_distance,
+            });
+        }
+        None
     }
 
     fn quality(&self, e: &Evaluation, centroid_distance: f32) -> f32 {
