@@ -127,6 +127,9 @@ pub enum RoundEnd {
     AttemptBudget,
     /// The camera saw no object on the table.
     NothingSeen,
+    /// A look found no grasp on anything left on the table
+    /// ([`crate::scenario::ScenarioConfig::end_round_without_grasp`]).
+    NoGrasp,
 }
 
 /// One round.

@@ -799,6 +799,9 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
                     Decision::nothing(self.spec),
                     clock,
                 );
+                if cfg.end_round_without_grasp {
+                    return Ok(RoundEnd::NoGrasp);
+                }
                 consecutive += 1;
                 continue;
             };

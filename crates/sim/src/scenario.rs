@@ -117,6 +117,12 @@ pub struct ScenarioConfig {
     pub ranked_grasps: usize,
     /// A packed or pile round ends after this many failed attempts in a row (default 3).
     pub max_consecutive_failures: usize,
+    /// A cluttered round also ends when a look finds no grasp on anything left (default true):
+    /// nothing moved, so another look would find none either, and the reference's loop recorded
+    /// the same failure again up to `max_consecutive_failures` times (in 50 pile rounds 57 of
+    /// 86 no-grasp attempts were such repeats). VGN's clutter-removal protocol ends a round the
+    /// same way. The attempt that found nothing is still recorded, as one failure.
+    pub end_round_without_grasp: bool,
     /// Objects in a packed or pile round (default 5).
     pub clutter_objects: usize,
     /// Centre of the packed and pile arrangements on the table (m; default (0.05, −0.52)).
@@ -156,6 +162,7 @@ impl Default for ScenarioConfig {
             isolated_region: DropRegion::default(),
             ranked_grasps: 3,
             max_consecutive_failures: 3,
+            end_round_without_grasp: true,
             clutter_objects: 5,
             clutter_center_xy_m: [0.05, -0.52],
             packed_start_m: 0.30,
