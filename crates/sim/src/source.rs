@@ -126,12 +126,40 @@ pub trait GraspSource {
 /// cross-section by ~2.6 cm: more than the 85 mm stroke has to spare over its 6 cm depth).
 pub const ROBOT_NUM_ANGLES: usize = 36;
 
-/// Antipodal grasps from the crop's depth image ([`analytic_grasps`]).
+/// Antipodal grasps from the crop's depth image ([`analytic_grasps`]). The search is a pure
+/// function of the query, so the source remembers its last [`ANALYTIC_CACHE_SIZE`] answers and
+/// gives them again for a query equal in every byte (crop, intrinsics, gripper, `k`): on a
+/// cluttered table the robot looks at every object before each attempt, and the ones nothing
+/// touched look the same as before.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AnalyticSource {
     /// Search parameters (`num_grasps` is replaced by the `k` asked for; default: the
     /// labeller's, with [`ROBOT_NUM_ANGLES`] axes).
     pub params: AnalyticParams,
+    answers: Answers,
+}
+
+/// How many answers an [`AnalyticSource`] remembers.
+pub const ANALYTIC_CACHE_SIZE: usize = 16;
+
+/// Queries and their answers, most recent last.
+#[derive(Debug, Clone, Default)]
+struct Answers(Vec<Answer>);
+
+#[derive(Debug, Clone)]
+struct Answer {
+    crop: ObjectCrop,
+    intrinsics: Intrinsics,
+    gripper: GraspSpec,
+    params: AnalyticParams,
+    grasps: Vec<DecodedGrasp>,
+}
+
+impl PartialEq for Answers {
+    /// What a source remembers never makes it another source.
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Default for AnalyticSource {
@@ -141,6 +169,7 @@ impl Default for AnalyticSource {
                 num_angles: ROBOT_NUM_ANGLES,
                 ..AnalyticParams::default()
             },
+            answers: Answers::default(),
         }
     }
 }
@@ -169,12 +198,30 @@ impl GraspSource for AnalyticSource {
             num_grasps: k,
             ..self.params
         };
-        Ok(analytic_grasps(
-            query.crop,
-            query.intrinsics,
-            query.gripper,
-            &params,
-        )?)
+        let known = self.answers.0.iter().position(|a| {
+            a.crop == *query.crop
+                && a.intrinsics == *query.intrinsics
+                && a.gripper == *query.gripper
+                && a.params == params
+        });
+        if let Some(i) = known {
+            let answer = self.answers.0.remove(i);
+            let grasps = answer.grasps.clone();
+            self.answers.0.push(answer);
+            return Ok(grasps);
+        }
+        let grasps = analytic_grasps(query.crop, query.intrinsics, query.gripper, &params)?;
+        if self.answers.0.len() >= ANALYTIC_CACHE_SIZE {
+            self.answers.0.remove(0);
+        }
+        self.answers.0.push(Answer {
+            crop: query.crop.clone(),
+            intrinsics: *query.intrinsics,
+            gripper: *query.gripper,
+            params,
+            grasps: grasps.clone(),
+        });
+        Ok(grasps)
     }
 }
 
@@ -280,5 +327,68 @@ impl GraspSource for RandomSource {
         // Best first; a stable sort keeps the draw order among equal qualities.
         out.sort_by(|a, b| b.quality.total_cmp(&a.quality));
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lgdm_pointcloud::grasp::decode::InputCrop;
+
+    /// A 96 px crop of a table 0.5 m away with a 2 cm tall box of `side` px in the middle.
+    fn crop(side: usize) -> ObjectCrop {
+        let n = 96;
+        let (lo, hi) = (48 - side / 2, 48 + side / 2);
+        ObjectCrop {
+            size_px: n as u32,
+            rgb: vec![[90; 3]; n * n],
+            depth_m: (0..n * n)
+                .map(|i| {
+                    let inside = (lo..hi).contains(&(i % n)) && (lo..hi).contains(&(i / n));
+                    if inside { 0.48 } else { 0.5 }
+                })
+                .collect(),
+            window: InputCrop::IDENTITY,
+            table_depth_m: 0.5,
+        }
+    }
+
+    #[test]
+    fn a_remembered_answer_is_the_searchs_answer_and_other_queries_are_searched() {
+        let intrinsics = Intrinsics::centered(96, 96, 200.0);
+        let gripper = GraspSpec::default();
+        let ask = |source: &mut AnalyticSource, crop: &ObjectCrop, k: usize| {
+            let query = GraspQuery {
+                crop,
+                intrinsics: &intrinsics,
+                gripper: &gripper,
+            };
+            source.grasps(&query, k).unwrap()
+        };
+        let (small, large) = (crop(16), crop(24));
+        let mut source = AnalyticSource::new();
+        let first = ask(&mut source, &small, 3);
+        assert!(!first.is_empty());
+        assert_eq!(source.answers.0.len(), 1);
+        assert_eq!(ask(&mut source, &small, 3), first);
+        assert_eq!(
+            source.answers.0.len(),
+            1,
+            "the same query is answered again"
+        );
+        // Another crop, another k: searched, each equal to a fresh source's answer.
+        let other = ask(&mut source, &large, 3);
+        assert_ne!(other, first);
+        assert_eq!(other, ask(&mut AnalyticSource::new(), &large, 3));
+        assert_eq!(
+            ask(&mut source, &small, 1),
+            ask(&mut AnalyticSource::new(), &small, 1)
+        );
+        assert_eq!(source.answers.0.len(), 3);
+        // Bounded: the oldest answers go.
+        for side in 10..10 + ANALYTIC_CACHE_SIZE {
+            ask(&mut source, &crop(2 * side), 1);
+        }
+        assert_eq!(source.answers.0.len(), ANALYTIC_CACHE_SIZE);
     }
 }
