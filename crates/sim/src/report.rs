@@ -56,15 +56,31 @@ pub fn summary_table(r: &RunResults) -> String {
         .keys()
         .map(|c| c.chars().count())
         .fold(12, usize::max);
+    // Failure reasons per category, from the attempts (those without an object: "unknown").
+    let mut reasons: BTreeMap<&str, BTreeMap<String, usize>> = BTreeMap::new();
+    for a in &r.attempts {
+        if let Some(reason) = a.reason {
+            let c = a.category.as_deref().unwrap_or("unknown");
+            *reasons
+                .entry(c)
+                .or_default()
+                .entry(reason.as_str().to_string())
+                .or_default() += 1;
+        }
+    }
     let _ = writeln!(
         out,
-        "  {:<w$} {:>8}  {:<32} placement success",
-        "category", "attempts", "grasp success"
+        "  {:<w$} {:>8}  {:<32} {:<32} failures",
+        "category", "attempts", "grasp success", "placement success"
     );
     for (c, cs) in &s.per_category {
+        let failures = reasons
+            .get(c.as_str())
+            .map(failure_list)
+            .unwrap_or_else(|| "none".into());
         let _ = writeln!(
             out,
-            "  {c:<w$} {:>8}  {:<32} {}",
+            "  {c:<w$} {:>8}  {:<32} {:<32} {failures}",
             cs.attempts,
             cs.grasp_success_rate.describe(),
             cs.placement_success_rate.describe()
