@@ -52,7 +52,8 @@ pub struct SegmentParams {
     pub plane_iterations: usize,
     /// Components with fewer pixels are noise, not objects (default: 50).
     pub min_pixels: usize,
-    /// Split touching objects (default: false): two neighbouring pixels belong to one object
+    /// Split touching objects (default: true; [`SegmentParams::whole_components`] does not, as
+    /// the dataset's grasp images were cut): two neighbouring pixels belong to one object
     /// unless both their depths differ by more than `edge_depth_m` and their colours by more
     /// than `edge_colour` — the edge where one object meets another of another colour and
     /// height. A single object's own steps (a mug's rim over its inside) share its colour.
@@ -72,9 +73,21 @@ impl Default for SegmentParams {
             plane_step_px: 4,
             plane_iterations: 200,
             min_pixels: 50,
-            split_edges: false,
+            split_edges: true,
             edge_depth_m: 0.01,
             edge_colour: 60,
+        }
+    }
+}
+
+impl SegmentParams {
+    /// The defaults without splitting touching objects: connected components only, as the
+    /// dataset's grasp images (`gen-dataset`'s Cornell export) and the autoencoder's views are
+    /// cut, so their bytes do not change.
+    pub fn whole_components() -> Self {
+        Self {
+            split_edges: false,
+            ..Self::default()
         }
     }
 }
@@ -531,7 +544,12 @@ mod tests {
     #[test]
     fn touching_objects_of_other_colours_and_heights_are_split_on_request() {
         let (camera, frame) = touching_boxes();
-        let plain = segment_objects(&frame, &camera.intrinsics, &SegmentParams::default()).unwrap();
+        let plain = segment_objects(
+            &frame,
+            &camera.intrinsics,
+            &SegmentParams::whole_components(),
+        )
+        .unwrap();
         assert_eq!(
             plain.objects.len(),
             2,

@@ -141,7 +141,7 @@ fn crop_grasps_are_python_decode_in_crop_pixels() {
     let found = crop_largest_object(
         &scene.frame,
         &scene.camera.intrinsics,
-        &SegmentParams::default(),
+        &SegmentParams::whole_components(),
         &spec,
     )
     .unwrap();

@@ -59,17 +59,19 @@ use rapier3d::prelude::{
 };
 use serde::{Deserialize, Serialize};
 
-/// Geometry, mass and drive of the gripper. Defaults are stated per field.
+/// Geometry, mass and drive of the gripper. The default is the 2F-140's preset
+/// ([`GripperConfig::preset`]); each field states the 2F-85's value and, where it differs, the
+/// 2F-140's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GripperConfig {
-    /// Largest opening between the pads (m; default 0.085, a Robotiq 2F-85's stroke, the
-    /// reference's `MAX_GRASP`).
+    /// Largest opening between the pads (m; 2F-140 0.14; 2F-85 0.085, the reference's
+    /// `MAX_GRASP`).
     pub stroke_m: f32,
     /// Pad width along the palm's y (m; default 0.02 = the grasp labels'
     /// `DEFAULT_FINGER_WIDTH_M`).
     pub finger_width_m: f32,
-    /// Pad length along the approach axis (m; default 0.05).
+    /// Pad length along the approach axis (m; 2F-140 0.065, 2F-85 0.05).
     pub finger_length_m: f32,
     /// Pad thickness along the opening axis (m; default 0.01).
     pub finger_thickness_m: f32,
@@ -78,7 +80,8 @@ pub struct GripperConfig {
     pub finger_density_kg_m3: f32,
     /// Pad friction coefficient (default 1.0, the reference pads' `lateralFriction`).
     pub finger_friction: f32,
-    /// Distance from the flange to the pad centre (m; default 0.15, the arm's default tool).
+    /// Distance from the flange to the pad centre (m; 2F-140 0.2, 2F-85 0.15: the arm's default
+    /// tool).
     pub tool_length_m: f32,
     /// Half width of the palm box along y (m; default 0.03).
     pub palm_half_width_m: f32,
@@ -105,24 +108,9 @@ pub struct GripperConfig {
 }
 
 impl Default for GripperConfig {
+    /// The preset of the default model ([`GripperModel::default`]: the 2F-140).
     fn default() -> Self {
-        Self {
-            stroke_m: 0.085,
-            finger_width_m: lgdm_pointcloud::grasp::label::DEFAULT_FINGER_WIDTH_M,
-            finger_length_m: 0.05,
-            finger_thickness_m: 0.01,
-            finger_density_kg_m3: 8000.0,
-            finger_friction: 1.0,
-            tool_length_m: 0.15,
-            palm_half_width_m: 0.03,
-            motor_stiffness_n_m: 1.0e4,
-            motor_damping_n_s_m: 200.0,
-            grip_force_n: 40.0,
-            max_force_n: 60.0,
-            opening_speed_m_s: 0.1,
-            finger_extra_solver_iterations: 4,
-            closed_gap_m: 0.005,
-        }
+        Self::preset(GripperModel::default())
     }
 }
 
@@ -130,12 +118,16 @@ impl Default for GripperConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GripperModel {
-    /// Robotiq 2F-85: 85 mm stroke, 20–235 N grip force (Robotiq's figures). The default: the
-    /// grasp labels and the shipped network's jaw are this gripper's.
-    #[default]
+    /// Robotiq 2F-85: 85 mm stroke, 20–235 N grip force (Robotiq's figures). The grasp labels
+    /// and the shipped network's jaw are this gripper's.
     Robotiq2F85,
     /// Robotiq 2F-140: 140 mm stroke, 10–125 N grip force (Robotiq's figures); longer fingers
-    /// on a longer body. The paper's pybullet robot carries it.
+    /// on a longer body. The paper's pybullet robot carries it, and it is the default: it takes
+    /// every object of the paper's set (the master chef can is 102 mm across) and, planning
+    /// again for 85 mm when its stroke finds nothing ([`crate::attempt::AttemptConfig`]'s
+    /// `fallback_openings_m`), grasps the procedural objects at least as well as the 2F-85
+    /// (README, "The paper's objects").
+    #[default]
     Robotiq2F140,
 }
 
@@ -160,12 +152,28 @@ impl GripperConfig {
     /// longer from the flange), not datasheet values.
     pub fn preset(model: GripperModel) -> GripperConfig {
         match model {
-            GripperModel::Robotiq2F85 => GripperConfig::default(),
+            GripperModel::Robotiq2F85 => GripperConfig {
+                stroke_m: 0.085,
+                finger_width_m: lgdm_pointcloud::grasp::label::DEFAULT_FINGER_WIDTH_M,
+                finger_length_m: 0.05,
+                finger_thickness_m: 0.01,
+                finger_density_kg_m3: 8000.0,
+                finger_friction: 1.0,
+                tool_length_m: 0.15,
+                palm_half_width_m: 0.03,
+                motor_stiffness_n_m: 1.0e4,
+                motor_damping_n_s_m: 200.0,
+                grip_force_n: 40.0,
+                max_force_n: 60.0,
+                opening_speed_m_s: 0.1,
+                finger_extra_solver_iterations: 4,
+                closed_gap_m: 0.005,
+            },
             GripperModel::Robotiq2F140 => GripperConfig {
                 stroke_m: 0.14,
                 finger_length_m: 0.065,
                 tool_length_m: 0.2,
-                ..GripperConfig::default()
+                ..GripperConfig::preset(GripperModel::Robotiq2F85)
             },
         }
     }
@@ -824,7 +832,7 @@ mod tests {
         assert!(g.set_palm_pose(&bad).is_err());
         assert!(Gripper::new(&mut world, GripperConfig::default(), &bad, 0.05).is_err());
         g.set_opening(1.0).unwrap();
-        assert_eq!(g.target_opening_m(), 0.085);
+        assert_eq!(g.target_opening_m(), GripperConfig::default().stroke_m);
         assert!(PalmPath::new(&pose, &pose, 0.0, 1.0).is_err());
     }
 

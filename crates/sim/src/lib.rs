@@ -67,7 +67,7 @@
 //!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
-//! use lgdm_sim::gripper::{Gripper, GripperConfig, top_down_palm_pose};
+//! use lgdm_sim::gripper::{Gripper, GripperConfig, GripperModel, top_down_palm_pose};
 //! use lgdm_sim::world::{World, WorldConfig};
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top_z = world.config().table.top_z_m();
@@ -75,9 +75,10 @@
 //! let pose = lgdm_pointcloud::math::translation([0.05, -0.52, top_z]);
 //! let cube = world.spawn_object("cube", &cube, &pose).unwrap();
 //! world.settle();
-//! // Pads around the cube, closing.
+//! // The 2F-85's pads around the cube (its 5 cm fingers end 5 mm above the table), closing.
 //! let at = top_down_palm_pose([0.05, -0.52, f64::from(top_z) + 0.03], 0.0);
-//! let mut gripper = Gripper::new(&mut world, GripperConfig::default(), &at, 0.085).unwrap();
+//! let g = GripperConfig::preset(GripperModel::Robotiq2F85);
+//! let mut gripper = Gripper::new(&mut world, g, &at, 0.085).unwrap();
 //! gripper.set_opening(0.0).unwrap();
 //! while !gripper.opening_settled() {
 //!     gripper.step(&mut world);

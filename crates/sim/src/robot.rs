@@ -408,16 +408,31 @@ impl Robot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gripper::GripperModel;
     use crate::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
     use crate::world::WorldConfig;
 
-    /// The default mounting reaches the reference workspace with top-down grasps: the drop
-    /// region (0.05, −0.52) ± 0.20 m from just above the table up to the approach height
-    /// 1.25 m, and above both baskets (± 0.1 m) up to 0.35 m above their floor, z = 1.035 m (the reference's 1.25 m over the
-    /// baskets is 0.72 m out and 0.47 m up from the base: beyond a UR5e with a 0.15 m tool).
+    /// The default mounting reaches the reference workspace with top-down grasps, with either
+    /// gripper: the drop region (0.05, −0.52) ± 0.20 m from just above the table up to the
+    /// approach height 1.25 m, and above both baskets (± 0.1 m) up to the carry height and
+    /// beyond — 0.35 m above their floor (z = 1.035 m) with the 2F-85's 0.15 m tool, 0.345 m
+    /// (the carry height 1.03 m) with the 2F-140's 0.2 m one (the reference's 1.25 m over the
+    /// baskets is 0.72 m out and 0.47 m up from the base: beyond a UR5e with either tool).
     #[test]
     fn default_mounting_reaches_reference_workspace() {
-        let config = RobotConfig::default();
+        for (model, highest) in [
+            (GripperModel::Robotiq2F85, 0.35),
+            (GripperModel::Robotiq2F140, 0.33),
+        ] {
+            reaches_reference_workspace(model, highest);
+        }
+    }
+
+    fn reaches_reference_workspace(model: GripperModel, highest_above_basket_m: f64) {
+        let config = RobotConfig {
+            gripper: GripperConfig::preset(model),
+            ..RobotConfig::default()
+        };
         let arm = config.effective_arm();
         let mut ik = IkSolver::new(arm.clone(), IkConfig::default()).unwrap();
         let top = 0.785;
@@ -437,10 +452,15 @@ mod tests {
                 (-0.1, 0.1),
                 (0.1, -0.1),
             ] {
-                for z in [0.685 + 0.15, 0.685 + 0.25, 0.685 + 0.35] {
+                for z in [0.685 + 0.15, 0.685 + 0.25, 0.685 + highest_above_basket_m] {
                     targets.push([x + dx, dy, z]);
                 }
             }
+            targets.push([
+                x,
+                0.0,
+                crate::attempt::AttemptConfig::default().carry_height_m,
+            ]);
         }
         let mut failures = Vec::new();
         for p in &targets {
@@ -453,7 +473,8 @@ mod tests {
         }
         assert!(
             failures.is_empty(),
-            "{} unreachable:\n{}",
+            "{}: {} unreachable:\n{}",
+            model.name(),
             failures.len(),
             failures.join("\n")
         );

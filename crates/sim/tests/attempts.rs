@@ -126,7 +126,8 @@ fn place_a_can_in(basket: usize) {
     let d = (grasp.position_m[0] - 0.08).hypot(grasp.position_m[1] + 0.55);
     assert!(d < 0.04, "grasp {d} m from the can's axis");
     let plan = plan_grasp(&cell, &view, &grasp, &config);
-    assert!(plan.opening_m <= 0.085 + 1e-9 && plan.opening_m > grasp.opening_m);
+    let stroke = f64::from(cell.robot.gripper().config().stroke_m);
+    assert!(plan.opening_m <= stroke + 1e-9 && plan.opening_m > grasp.opening_m);
     let mut wall = WallTimes::default();
     let exec = execute(&mut cell, &plan, view.object, &config, &mut wall).unwrap();
     assert!(

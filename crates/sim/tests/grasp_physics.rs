@@ -11,7 +11,7 @@
 use lgdm_pointcloud::math::{Pose, rotation_z, transform_point, translation};
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::{CATEGORIES, procedural_object};
-use lgdm_sim::gripper::{Gripper, GripperConfig, PalmPath, top_down_palm_pose};
+use lgdm_sim::gripper::{Gripper, GripperConfig, GripperModel, PalmPath, top_down_palm_pose};
 use lgdm_sim::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
 use lgdm_sim::robot::{FollowOptions, Robot, RobotConfig};
 use lgdm_sim::trajectory::{JointTrajectory, LinearMove, plan_linear_move};
@@ -77,7 +77,7 @@ impl Trial {
                 ..ObjectMaterial::default()
             },
             grasp_yaw_rad: 0.0,
-            gripper: GripperConfig::default(),
+            gripper: GripperConfig::preset(GripperModel::Robotiq2F85),
             empty: false,
         }
     }
@@ -483,7 +483,11 @@ fn arm_episode(seed: u64, category: &str) -> (Vec<u32>, f32) {
         .unwrap();
     let rest = world.object_pose(object).unwrap();
     let (_, hi) = mesh.bounds().unwrap();
-    let config = RobotConfig::default();
+    // The 2F-85: the heights below are chosen for its fingers.
+    let config = RobotConfig {
+        gripper: GripperConfig::preset(GripperModel::Robotiq2F85),
+        ..RobotConfig::default()
+    };
     let home = config.arm.home_rad;
     let mut robot = Robot::new(&mut world, config, &home, 0.085).unwrap();
     let arm = robot.arm().clone();
@@ -571,7 +575,10 @@ fn arm_driven_close_and_lift_holds_a_box() {
         .unwrap();
     world.settle();
     let rest_z = world.object_pose(h).unwrap().translation.z;
-    let config = RobotConfig::default();
+    let config = RobotConfig {
+        gripper: GripperConfig::preset(GripperModel::Robotiq2F85),
+        ..RobotConfig::default()
+    };
     let home = config.arm.home_rad;
     let mut robot = Robot::new(&mut world, config, &home, 0.085).unwrap();
     let arm = robot.arm().clone();

@@ -434,9 +434,13 @@ fn write_grasp_image(
             None
         }
         Some(spec) => {
-            let found =
-                crop_largest_object(f, &scene.camera.intrinsics, &SegmentParams::default(), spec)
-                    .map_err(|source| CornellError::Crop { image: k, source })?;
+            let found = crop_largest_object(
+                f,
+                &scene.camera.intrinsics,
+                &SegmentParams::whole_components(),
+                spec,
+            )
+            .map_err(|source| CornellError::Crop { image: k, source })?;
             let crop = found.crop;
             let n = crop.size_px as usize;
             let jaw_px = spec.size_px as f32 * spec.side_fraction(export.grasp.finger_width_m);

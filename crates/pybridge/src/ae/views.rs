@@ -67,8 +67,13 @@ pub fn view_image(
     let mut frame = table.clone();
     splat_cloud(&mut frame, &camera.intrinsics, cloud, None);
     let spec = CropSpec::default();
-    let found = crop_largest_object(&frame, &camera.intrinsics, &SegmentParams::default(), &spec)
-        .map_err(|e| AeError::Input(format!("cropping a view: {e}")))?;
+    let found = crop_largest_object(
+        &frame,
+        &camera.intrinsics,
+        &SegmentParams::whole_components(),
+        &spec,
+    )
+    .map_err(|e| AeError::Input(format!("cropping a view: {e}")))?;
     Ok(ViewImage {
         size: spec.size_px as usize,
         rgb: found.crop.rgb.into_iter().flatten().collect(),

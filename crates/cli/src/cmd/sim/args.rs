@@ -211,7 +211,7 @@ pub struct RobotArgs {
     /// The options below override it.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// The gripper (default: the config's, else the 2F-85).
+    /// The gripper (default: the config's, else the 2F-140, the paper's)
     #[arg(long, value_enum)]
     pub gripper: Option<GripperArg>,
     /// What the cameras draw for an object (default: the config's, else collider).
