@@ -1,5 +1,5 @@
-//! One full grasp attempt of the robot, timed: a decomposed procedural mug settled on the table,
-//! the arm at its ready pose; the attempt approaches, descends, closes, lifts, holds, carries
+//! One full grasp attempt of the robot, timed: a decomposed procedural mug settled on the table
+//! (with the 2F-85), the arm at its ready pose; the attempt approaches, descends, closes, lifts, holds, carries
 //! to the basket, releases and parks (`execute` + `park`: physics, IK and trajectories).
 //! `perceive_and_plan` times what comes before: the overview frame, segmentation, the close-up
 //! frame and crop, the analytic source and the grasp plan.
@@ -127,7 +127,10 @@ fn bench(c: &mut Criterion) {
         mesh: procedural_object("mug", 0, 2).unwrap(),
         physics: Default::default(),
     };
-    attempt_benches(c, "", &mug, &SimConfig::default());
+    // The mug with the 2F-85, as this bench has timed it from the start.
+    let mut two_f_85 = SimConfig::default();
+    two_f_85.robot.gripper = GripperConfig::preset(GripperModel::Robotiq2F85);
+    attempt_benches(c, "", &mug, &two_f_85);
     let Some(dir) = std::env::var_os("LGDM_BENCH_YCB") else {
         eprintln!(
             "sim/ycb_*: skipped — set LGDM_BENCH_YCB to a directory `lgdm sim objects --out DIR` \
