@@ -52,7 +52,7 @@ fn crops_reread_to_the_labels_in_crop_pixels_with_the_finger_width_jaw() {
         let found = crop_largest_object(
             &scene.frame,
             &scene.camera.intrinsics,
-            &SegmentParams::default(),
+            &SegmentParams::whole_components(),
             &crop,
         )
         .unwrap();
