@@ -279,6 +279,26 @@ impl Mesh {
         mesh
     }
 
+    /// The mesh as Wavefront OBJ text: its vertices as given (file units) and its triangles,
+    /// without colours — what `--meshes` reads back (`lgdm_pointcloud::import`).
+    ///
+    /// ```
+    /// use lgdm_pointcloud::mesh::Mesh;
+    /// let obj = Mesh::cuboid([0.0; 3], [1.0; 3], [9, 9, 9]).to_obj();
+    /// assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 8);
+    /// assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 12);
+    /// ```
+    pub fn to_obj(&self) -> String {
+        let mut s = String::from("o mesh\n");
+        for v in &self.vertices {
+            s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+        }
+        for t in &self.triangles {
+            s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        s
+    }
+
     /// An axis-aligned box centred at `center` with edge lengths `size` (metres).
     pub fn cuboid(center: [f32; 3], size: [f32; 3], color: [u8; 3]) -> Mesh {
         let h = scale(size, 0.5);

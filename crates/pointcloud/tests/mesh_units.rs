@@ -19,18 +19,6 @@ use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::{ObjectModel, rest_on_table};
 use lgdm_pointcloud::preview::{SIZE_BAR_COLOR, TILE_W, contact_sheet_tiles};
 
-/// OBJ text of a mesh (coordinates as given: file units).
-fn obj(mesh: &Mesh) -> String {
-    let mut s = String::from("o mesh\n");
-    for v in &mesh.vertices {
-        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
-    }
-    for t in &mesh.triangles {
-        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
-    }
-    s
-}
-
 /// A closed ball of diameter `d` file units (a lathed semicircle).
 fn ball(d: f32) -> Mesh {
     let r = d / 2.0;
@@ -86,11 +74,16 @@ fn sizes_that_fit_two_units_are_errors_asking_for_units() {
     // A 43 mm golf ball and a 58 mm cup in millimetres; a 25 cm bottle in centimetres. Each is
     // household-sized in mm and in cm.
     let cases = [
-        ("ball/golf_ball.obj", obj(&ball(43.0)), "0.043 m", "0.43 m"),
-        ("cup/espresso.obj", obj(&cup(58.0)), "0.058 m", "0.58 m"),
+        (
+            "ball/golf_ball.obj",
+            ball(43.0).to_obj(),
+            "0.043 m",
+            "0.43 m",
+        ),
+        ("cup/espresso.obj", cup(58.0).to_obj(), "0.058 m", "0.58 m"),
         (
             "bottle/bottle.obj",
-            obj(&cuboid([7.0, 7.0, 25.0])),
+            cuboid([7.0, 7.0, 25.0]).to_obj(),
             "0.025 m",
             "0.25 m",
         ),
@@ -139,8 +132,8 @@ fn sizes_that_fit_two_units_are_errors_asking_for_units() {
 fn given_units_give_objects_of_the_right_size() {
     let dir = tempfile::tempdir().unwrap();
     let meshes = dir.path().join("meshes");
-    write(&meshes.join("ball/golf_ball.obj"), &obj(&ball(43.0)));
-    write(&meshes.join("cup/espresso.obj"), &obj(&cup(62.0)));
+    write(&meshes.join("ball/golf_ball.obj"), &ball(43.0).to_obj());
+    write(&meshes.join("cup/espresso.obj"), &cup(62.0).to_obj());
     let units = MeshUnits::parse(&["mm"]).unwrap();
     let lib = load_mesh_library(&meshes, &units).unwrap();
     let sizes: Vec<(&str, f32)> = lib
@@ -245,7 +238,7 @@ fn unambiguous_sizes_are_guessed_and_reported() {
         ),
     ];
     for (file, mesh, _, _) in &cases {
-        write(&meshes.join(file), &obj(mesh));
+        write(&meshes.join(file), &mesh.to_obj());
     }
     let lib = load_mesh_library(&meshes, &MeshUnits::guess()).unwrap();
     let mut files: Vec<&str> = cases.iter().map(|c| c.0).collect();
@@ -307,7 +300,7 @@ fn sizes_that_fit_no_unit_are_errors_unless_the_unit_is_given() {
         ("bead.obj", ball(0.005), "0.005 m"),
     ] {
         let path = dir.path().join(name);
-        write(&path, &obj(&mesh));
+        write(&path, &mesh.to_obj());
         let err = load_mesh(&path).map(|_| ()).unwrap_err();
         assert!(
             matches!(err, MeshImportError::NoPlausibleUnit { .. }),
@@ -322,7 +315,7 @@ fn sizes_that_fit_no_unit_are_errors_unless_the_unit_is_given() {
     let meshes = dir.path().join("meshes");
     write(
         &meshes.join("furniture/chair.obj"),
-        &obj(&cuboid([0.5, 0.5, 0.7])),
+        &cuboid([0.5, 0.5, 0.7]).to_obj(),
     );
     let lib = load_mesh_library(&meshes, &MeshUnits::parse(&["m"]).unwrap()).unwrap();
     assert!((lib[0].report.largest_extent_m - 0.7).abs() < 1e-5);
@@ -333,10 +326,10 @@ fn sizes_that_fit_no_unit_are_errors_unless_the_unit_is_given() {
 fn per_file_units_take_precedence_over_every_file_units() {
     let dir = tempfile::tempdir().unwrap();
     let meshes = dir.path().join("meshes");
-    write(&meshes.join("ball/golf_ball.obj"), &obj(&ball(43.0)));
+    write(&meshes.join("ball/golf_ball.obj"), &ball(43.0).to_obj());
     write(
         &meshes.join("box/crate.obj"),
-        &obj(&cuboid([0.3, 0.2, 0.2])),
+        &cuboid([0.3, 0.2, 0.2]).to_obj(),
     );
     let report = |units: &[&str], file: &str| -> ImportReport {
         let units = MeshUnits::parse(units).unwrap();

@@ -10,26 +10,14 @@ use lgdm_pointcloud::import::{
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::sidecar::SIDECAR_FILE;
 
-/// OBJ text of a mesh (coordinates as given: file units).
-fn obj(mesh: &Mesh) -> String {
-    let mut s = String::from("o mesh\n");
-    for v in &mesh.vertices {
-        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
-    }
-    for t in &mesh.triangles {
-        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
-    }
-    s
-}
-
 /// A library of two boxes in millimetres: `box/tall.obj` (20 × 40 × 100 mm, standing) and
 /// `box/flat.obj` (60 × 60 × 30 mm), with `sidecar` as its objects.toml (none when empty).
 fn library(dir: &Path, sidecar: &str) {
     std::fs::create_dir_all(dir.join("box")).unwrap();
     let tall = Mesh::cuboid([0.0; 3], [20.0, 40.0, 100.0], [200, 200, 200]);
     let flat = Mesh::cuboid([0.0; 3], [60.0, 60.0, 30.0], [200, 200, 200]);
-    std::fs::write(dir.join("box/tall.obj"), obj(&tall)).unwrap();
-    std::fs::write(dir.join("box/flat.obj"), obj(&flat)).unwrap();
+    std::fs::write(dir.join("box/tall.obj"), tall.to_obj()).unwrap();
+    std::fs::write(dir.join("box/flat.obj"), flat.to_obj()).unwrap();
     if !sidecar.is_empty() {
         std::fs::write(dir.join(SIDECAR_FILE), sidecar).unwrap();
     }

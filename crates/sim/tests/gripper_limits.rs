@@ -18,18 +18,6 @@ use lgdm_sim::scenario::Scenario;
 use lgdm_sim::spec::builtin_source;
 use lgdm_sim::world::{World, WorldConfig};
 
-/// OBJ text of a mesh (metres).
-fn obj(mesh: &Mesh) -> String {
-    let mut s = String::from("o mesh\n");
-    for v in &mesh.vertices {
-        s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
-    }
-    for t in &mesh.triangles {
-        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
-    }
-    s
-}
-
 /// A closed can of diameter `d` and height `h` (m).
 fn can(d: f32, h: f32) -> Mesh {
     let r = d / 2.0;
@@ -122,7 +110,11 @@ fn a_can_wider_than_the_stroke_is_named_and_said_to_be_too_wide() {
     let tmp = tempfile::tempdir().unwrap();
     // A 12 cm can: wider than the 2F-85's 85 mm stroke whichever way the jaws turn.
     std::fs::create_dir_all(tmp.path().join("can")).unwrap();
-    std::fs::write(tmp.path().join("can/wide_can.obj"), obj(&can(0.12, 0.08))).unwrap();
+    std::fs::write(
+        tmp.path().join("can/wide_can.obj"),
+        can(0.12, 0.08).to_obj(),
+    )
+    .unwrap();
     let r = grasp_run(tmp.path(), Scenario::Isolated, 2);
     assert!(!r.attempts.is_empty());
     for a in &r.attempts {
@@ -142,7 +134,7 @@ fn no_grasp_on_a_cluttered_table_names_an_object() {
         std::fs::create_dir_all(tmp.path().join(name)).unwrap();
         std::fs::write(
             tmp.path().join(format!("{name}/{name}.obj")),
-            obj(&can(d, 0.06)),
+            can(d, 0.06).to_obj(),
         )
         .unwrap();
     }
@@ -163,7 +155,7 @@ fn a_long_stroke_falls_back_to_a_narrower_plan_for_a_glass() {
     let tmp = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(tmp.path().join("glass")).unwrap();
     let glass = lgdm_pointcloud::objects::procedural_object("glass", 0, 0).unwrap();
-    std::fs::write(tmp.path().join("glass/glass_01.obj"), obj(&glass)).unwrap();
+    std::fs::write(tmp.path().join("glass/glass_01.obj"), glass.to_obj()).unwrap();
     let mut config = with_gripper(GripperModel::Robotiq2F140);
     let with = grasp_run_with(tmp.path(), Scenario::Isolated, 3, config.clone());
     config.attempt.fallback_openings_m.clear();
@@ -188,7 +180,7 @@ fn a_round_ends_when_no_grasp_is_found_on_anything() {
         std::fs::create_dir_all(tmp.path().join(name)).unwrap();
         std::fs::write(
             tmp.path().join(format!("{name}/{name}.obj")),
-            obj(&can(d, 0.06)),
+            can(d, 0.06).to_obj(),
         )
         .unwrap();
     }
@@ -212,7 +204,7 @@ fn both_gripper_presets_hold_and_place_a_box() {
     let tmp = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(tmp.path().join("box")).unwrap();
     let block = Mesh::cuboid([0.0, 0.0, 0.05], [0.05, 0.05, 0.1], [200, 60, 60]);
-    std::fs::write(tmp.path().join("box/box_01.obj"), obj(&block)).unwrap();
+    std::fs::write(tmp.path().join("box/box_01.obj"), block.to_obj()).unwrap();
     for model in GripperModel::ALL {
         let r = grasp_run_with(tmp.path(), Scenario::Isolated, 2, with_gripper(model));
         assert_eq!(r.attempts.len(), 2, "{}: {:?}", model.name(), r.attempts);
@@ -235,7 +227,11 @@ fn a_tall_box_held_near_its_top_lands_in_the_basket() {
     let tmp = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(tmp.path().join("cereal_box")).unwrap();
     let tall = lgdm_pointcloud::objects::procedural_object("cereal_box", 3, 0).unwrap();
-    std::fs::write(tmp.path().join("cereal_box/cereal_box_04.obj"), obj(&tall)).unwrap();
+    std::fs::write(
+        tmp.path().join("cereal_box/cereal_box_04.obj"),
+        tall.to_obj(),
+    )
+    .unwrap();
     let r = grasp_run_with(
         tmp.path(),
         Scenario::Isolated,
