@@ -1091,7 +1091,7 @@ impl Attempt<'_> {
         let speed = config.carry_speed_scale;
         // How far the object hangs below the tool, and how high the tool must be for it to
         // clear the basket's walls and the table.
-        let hang = self.hang_below_tool_m(object)?;
+        let hang = self.below_tool_m(object)?.max(0.0);
         let clear_of = (floor_z + f64::from(basket.wall_height_m)).max(self.cell.table_top_m());
         let needed = clear_of + hang + config.carry_clearance_m;
         let mut carry = None;
@@ -1129,19 +1129,7 @@ impl Attempt<'_> {
         }
         // Lower until the object's lowest collider point is just above the basket floor.
         let tcp_z = self.cell.robot.world_from_tool().translation.vector.z;
-        let pose = self.cell.world.object_pose(object)?;
-        let lowest = self
-            .cell
-            .world
-            .object_hull_points_m(object)?
-            .iter()
-            .map(|p| f64::from(transform_point(&pose, *p)[2]))
-            .fold(f64::INFINITY, f64::min);
-        let below = if lowest.is_finite() {
-            tcp_z - lowest
-        } else {
-            0.0
-        };
+        let below = self.below_tool_m(object)?;
         let release_z = (floor_z + below + config.release_clearance_m).min(tcp_z);
         if release_z < tcp_z - 1e-3
             && let Ok(lower) =
@@ -1155,9 +1143,9 @@ impl Attempt<'_> {
         Ok((basket, [bx, by]))
     }
 
-    /// How far `object`'s lowest collider point is below the tool centre now (m; 0 when it has
-    /// none).
-    fn hang_below_tool_m(&self, object: ObjectHandle) -> Result<f64, Stop> {
+    /// How far `object`'s lowest collider point is below the tool centre now (m; negative when
+    /// it is above, 0 when it has no collider points).
+    fn below_tool_m(&self, object: ObjectHandle) -> Result<f64, Stop> {
         let tcp_z = self.cell.robot.world_from_tool().translation.vector.z;
         let pose = self.cell.world.object_pose(object)?;
         let lowest = self
@@ -1168,7 +1156,7 @@ impl Attempt<'_> {
             .map(|p| f64::from(transform_point(&pose, *p)[2]))
             .fold(f64::INFINITY, f64::min);
         Ok(if lowest.is_finite() {
-            (tcp_z - lowest).max(0.0)
+            tcp_z - lowest
         } else {
             0.0
         })
