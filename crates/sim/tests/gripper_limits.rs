@@ -127,8 +127,8 @@ fn a_can_wider_than_the_stroke_is_named_and_said_to_be_too_wide() {
     );
 }
 
-#[test]
-fn no_grasp_on_a_cluttered_table_names_an_object() {
+/// A library of three 6 cm tall cans 11–13 cm across: wider than the 2F-85 every way.
+fn three_wide_cans() -> tempfile::TempDir {
     let tmp = tempfile::tempdir().unwrap();
     for (name, d) in [("wide_a", 0.12), ("wide_b", 0.13), ("wide_c", 0.11)] {
         std::fs::create_dir_all(tmp.path().join(name)).unwrap();
@@ -138,6 +138,12 @@ fn no_grasp_on_a_cluttered_table_names_an_object() {
         )
         .unwrap();
     }
+    tmp
+}
+
+#[test]
+fn no_grasp_on_a_cluttered_table_names_an_object() {
+    let tmp = three_wide_cans();
     let r = grasp_run(tmp.path(), Scenario::Scattered, 1);
     let none: Vec<_> = r.attempts.iter().filter(|a| a.grasp.is_none()).collect();
     assert!(!none.is_empty(), "only wide cans: no grasp is found");
@@ -175,15 +181,7 @@ fn a_long_stroke_falls_back_to_a_narrower_plan_for_a_glass() {
 /// round (one failure recorded), where the reference's loop recorded it three times.
 #[test]
 fn a_round_ends_when_no_grasp_is_found_on_anything() {
-    let tmp = tempfile::tempdir().unwrap();
-    for (name, d) in [("wide_a", 0.12), ("wide_b", 0.13), ("wide_c", 0.11)] {
-        std::fs::create_dir_all(tmp.path().join(name)).unwrap();
-        std::fs::write(
-            tmp.path().join(format!("{name}/{name}.obj")),
-            can(d, 0.06).to_obj(),
-        )
-        .unwrap();
-    }
+    let tmp = three_wide_cans();
     let mut config = with_gripper(GripperModel::Robotiq2F85);
     let ends = grasp_run_with(tmp.path(), Scenario::Packed, 2, config.clone());
     assert_eq!(ends.attempts.len(), 2, "one attempt a round");
