@@ -16,6 +16,7 @@
 //! assert!(cloud.len() > 100);
 //! ```
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::PointCloud;
@@ -147,12 +148,81 @@ pub fn render(camera: &Camera, items: &[RenderItem<'_>]) -> RgbdFrame {
         rgb: vec![BACKGROUND_RGB; w * h],
         label: vec![LABEL_BACKGROUND; w * h],
     };
+    let triangles = prepare_triangles(camera, items);
+    // Bands of rows on rayon's threads. Each band draws, in order, every triangle's pixels
+    // inside it, so each pixel meets the same triangles in the same order as in one pass: the
+    // same frame.
+    let band = RENDER_BAND_ROWS * w.max(1);
     let mut zbuf = vec![f32::INFINITY; w * h];
+    frame
+        .depth_m
+        .par_chunks_mut(band)
+        .zip(frame.rgb.par_chunks_mut(band))
+        .zip(frame.label.par_chunks_mut(band))
+        .zip(zbuf.par_chunks_mut(band))
+        .enumerate()
+        .for_each(|(b, (((depth_m, rgb), label), zbuf))| {
+            let first_row = b * RENDER_BAND_ROWS;
+            let last_row = first_row + depth_m.len() / w.max(1) - 1;
+            for t in &triangles {
+                let (min_y, max_y) = (t.min_y.max(first_row), t.max_y.min(last_row));
+                let [s0, s1, s2] = t.screen;
+                for y in min_y..=max_y {
+                    let py = y as f32;
+                    for x in t.min_x..=t.max_x {
+                        let px = x as f32;
+                        let w0 = ((s1[0] - px) * (s2[1] - py) - (s1[1] - py) * (s2[0] - px))
+                            * t.inv_area;
+                        let w1 = ((s2[0] - px) * (s0[1] - py) - (s2[1] - py) * (s0[0] - px))
+                            * t.inv_area;
+                        let w2 = 1.0 - w0 - w1;
+                        if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                            continue;
+                        }
+                        let [iz0, iz1, iz2] = t.inv_depth;
+                        let z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
+                        let i = (y - first_row) * w + x;
+                        if z < zbuf[i] {
+                            zbuf[i] = z;
+                            depth_m[i] = z;
+                            rgb[i] = t.color;
+                            label[i] = t.label;
+                        }
+                    }
+                }
+            }
+        });
+    frame
+}
+
+/// Rows per band [`render`] draws on one thread.
+const RENDER_BAND_ROWS: usize = 16;
+
+/// A triangle ready to be drawn: its screen corners, the pixels its box covers (inclusive),
+/// its shaded colour and label.
+struct ScreenTriangle {
+    screen: [[f32; 2]; 3],
+    inv_depth: [f32; 3],
+    inv_area: f32,
+    min_x: usize,
+    max_x: usize,
+    min_y: usize,
+    max_y: usize,
+    color: [u8; 3],
+    label: u8,
+}
+
+/// Every item's triangles in front of the near plane whose box covers a pixel, in drawing
+/// order, each flat-shaded from its camera-frame normal.
+fn prepare_triangles(camera: &Camera, items: &[RenderItem<'_>]) -> Vec<ScreenTriangle> {
+    let k = camera.intrinsics;
+    let (w, h) = (k.width as usize, k.height as usize);
     let camera_from_world = camera.world_from_camera.inverse();
     // Light: from above and slightly behind the camera (world frame), expressed in camera frame.
     let light_world = normalize([0.3, -0.6, 1.0]);
     let light = rotate_vector(&camera_from_world, light_world);
     let mut projected: Vec<([f32; 3], [f32; 2])> = Vec::new();
+    let mut out = Vec::new();
     for item in items {
         let camera_from_object = camera_from_world * item.world_from_object;
         projected.clear();
@@ -197,36 +267,24 @@ pub fn render(camera: &Camera, items: &[RenderItem<'_>]) -> RgbdFrame {
             let head = dot(n, normalize([-centre[0], -centre[1], -centre[2]])).max(0.0);
             let shade = 0.25 + 0.5 * lambert + 0.25 * head;
             let base = item.mesh.colors.get(ti).copied().unwrap_or([160, 160, 160]);
-            let color = [
-                (f32::from(base[0]) * shade).min(255.0) as u8,
-                (f32::from(base[1]) * shade).min(255.0) as u8,
-                (f32::from(base[2]) * shade).min(255.0) as u8,
-            ];
-            let inv_area = 1.0 / area;
-            let (iz0, iz1, iz2) = (1.0 / p0[2], 1.0 / p1[2], 1.0 / p2[2]);
-            for y in min_y as usize..=max_y as usize {
-                let py = y as f32;
-                for x in min_x as usize..=max_x as usize {
-                    let px = x as f32;
-                    let w0 = ((s1[0] - px) * (s2[1] - py) - (s1[1] - py) * (s2[0] - px)) * inv_area;
-                    let w1 = ((s2[0] - px) * (s0[1] - py) - (s2[1] - py) * (s0[0] - px)) * inv_area;
-                    let w2 = 1.0 - w0 - w1;
-                    if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
-                        continue;
-                    }
-                    let z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
-                    let i = y * w + x;
-                    if z < zbuf[i] {
-                        zbuf[i] = z;
-                        frame.depth_m[i] = z;
-                        frame.rgb[i] = color;
-                        frame.label[i] = item.label;
-                    }
-                }
-            }
+            out.push(ScreenTriangle {
+                screen: [s0, s1, s2],
+                inv_depth: [1.0 / p0[2], 1.0 / p1[2], 1.0 / p2[2]],
+                inv_area: 1.0 / area,
+                min_x: min_x as usize,
+                max_x: max_x as usize,
+                min_y: min_y as usize,
+                max_y: max_y as usize,
+                color: [
+                    (f32::from(base[0]) * shade).min(255.0) as u8,
+                    (f32::from(base[1]) * shade).min(255.0) as u8,
+                    (f32::from(base[2]) * shade).min(255.0) as u8,
+                ],
+                label: item.label,
+            });
         }
     }
-    frame
+    out
 }
 
 impl RgbdFrame {

@@ -848,16 +848,23 @@ impl HeightMap {
     }
 
     /// Bilinear sample of `field` at table point `p`; outside the map: `outside`.
-    #[inline]
+    #[inline(always)]
     fn sample(&self, field: &[f32], p: [f32; 2], outside: f32) -> f32 {
         let fx = (p[0] - self.x0) / self.cell - 0.5;
         let fy = (p[1] - self.y0) / self.cell - 0.5;
+        self.sample_at(field, fx, fy, outside)
+    }
+
+    /// [`HeightMap::sample`] at map coordinates (`fx`, `fy`), in cells from the first cell's
+    /// centre.
+    #[inline(always)]
+    fn sample_at(&self, field: &[f32], fx: f32, fy: f32, outside: f32) -> f32 {
         // Truncation is the floor for the non-negative (and `floor` is a libm call where SSE4.1
         // is not enabled: a fifth of the search's time); NaN and negatives are outside.
         if !(fx >= 0.0 && fy >= 0.0) {
             return outside;
         }
-        let (ix, iy) = ((fx as usize) as f32, (fy as usize) as f32);
+        let (ix, iy) = ((fx as i32) as f32, (fy as i32) as f32);
         if !(ix + 1.0 < self.nx as f32 && iy + 1.0 < self.ny as f32) {
             return outside;
         }
@@ -869,7 +876,7 @@ impl HeightMap {
     }
 
     /// Height at `p`, +∞ where the crop did not see it.
-    #[inline]
+    #[inline(always)]
     fn height_seen(&self, p: [f32; 2]) -> f32 {
         let v = self.sample(&self.h_seen, p, f32::INFINITY);
         if v.is_finite() { v } else { f32::INFINITY }
@@ -1017,6 +1024,34 @@ struct Moved {
     angle: f32,
     /// The axis turned to the walls.
     refined: f32,
+}
+
+/// The height profiles along the closing axis at the lanes across the jaw
+/// ([`AnalyticParams::jaw_samples`] offsets over the finger width), each made on first use: a
+/// slice that fails at one lane leaves the others unread.
+struct LaneRows<'a> {
+    search: &'a Search<'a>,
+    c: [f32; 2],
+    axis: [f32; 2],
+    rows: Vec<Option<Vec<f32>>>,
+}
+
+impl LaneRows<'_> {
+    /// Lane `r`'s profile ([`Search::profile`]).
+    fn get(&mut self, r: usize) -> &[f32] {
+        let jaw = self.rows.len();
+        let (search, c, axis) = (self.search, self.c, self.axis);
+        self.rows[r].get_or_insert_with(|| {
+            let l = if jaw == 1 {
+                0.0
+            } else {
+                search.gripper.finger_width_m * (r as f32 / (jaw - 1) as f32 - 0.5)
+            };
+            let mut row = Vec::new();
+            search.profile(c, axis, l, &mut row);
+            row
+        })
+    }
 }
 
 struct Search<'a> {
@@ -1179,11 +1214,23 @@ impl Search<'_> {
         let map = self.map;
         let half = self.half_len();
         let base = [c[0] - axis[1] * lateral_m, c[1] + axis[0] * lateral_m];
+        let n = 2 * half + 1;
+        // The map coordinates of every sample first, in a loop the compiler vectorises (the
+        // same operations in the same order as `HeightMap::sample`: the same bits), then the
+        // lookups.
         out.clear();
-        for k in 0..2 * half + 1 {
+        out.resize(2 * n, 0.0);
+        let (fx, fy) = out.split_at_mut(n);
+        for (k, (fx, fy)) in fx.iter_mut().zip(fy.iter_mut()).enumerate() {
             let s = (k as f32 - half as f32) * map.cell;
-            out.push(map.height_seen([base[0] + axis[0] * s, base[1] + axis[1] * s]));
+            *fx = (base[0] + axis[0] * s - map.x0) / map.cell - 0.5;
+            *fy = (base[1] + axis[1] * s - map.y0) / map.cell - 0.5;
         }
+        for k in 0..n {
+            let v = map.sample_at(&map.h_seen, out[k], out[n + k], f32::INFINITY);
+            out[k] = if v.is_finite() { v } else { f32::INFINITY };
+        }
+        out.truncate(n);
     }
 
     /// Evaluates (centre, axis angle) at every grasp height below `top`; `None` when none
@@ -1231,29 +1278,23 @@ impl Search<'_> {
         if !any {
             return None;
         }
-        // Then the lanes across the jaw.
+        // Then the lanes across the jaw, each profiled when a slice first needs it.
+        let mut rows = LaneRows {
+            search: self,
+            c,
+            axis,
+            rows: vec![None; p.jaw_samples],
+        };
         let jaw = p.jaw_samples;
-        let mut rows: Vec<Vec<f32>> = Vec::with_capacity(jaw);
-        for r in 0..jaw {
-            if jaw > 1 && r == jaw / 2 && jaw % 2 == 1 {
-                rows.push(centre_row.clone());
-                continue;
-            }
-            let l = if jaw == 1 {
-                0.0
-            } else {
-                g.finger_width_m * (r as f32 / (jaw - 1) as f32 - 0.5)
-            };
-            let mut row = Vec::new();
-            self.profile(c, axis, l, &mut row);
-            rows.push(row);
+        if jaw > 1 && jaw % 2 == 1 {
+            rows.rows[jaw / 2] = Some(centre_row);
         }
         // The deepest safe height, else the deepest that passes.
         let safe_cone = g.friction.atan() * p.safe_cone_fraction;
         let mut best: Option<Evaluation> = None;
         let mut passing = 0;
         for slice in slices[..tried].iter().flatten() {
-            let Some(lanes) = self.lanes(&rows, slice) else {
+            let Some(lanes) = self.lanes(&mut rows, slice) else {
                 continue;
             };
             passing += 1;
@@ -1353,7 +1394,7 @@ impl Search<'_> {
     /// (the labeller's test, to sub-cell precision); nothing between the fingers may reach
     /// the palm (`z_g + finger_length_m`); and the slice must reach the contact (within
     /// [`COVERAGE_BAND_M`]) in at least `min_jaw_coverage` of the rows.
-    fn lanes(&self, rows: &[Vec<f32>], slice: &Slice) -> Option<Lanes> {
+    fn lanes(&self, rows: &mut LaneRows<'_>, slice: &Slice) -> Option<Lanes> {
         let g = self.gripper;
         let p = self.params;
         let cell = self.map.cell;
@@ -1367,8 +1408,9 @@ impl Search<'_> {
         // Least-squares sums of the crossings' positions against the offset across the jaw,
         // per side: the walls' slope relative to the axis.
         let mut fit = [[0.0f32; 5]; 2];
-        let jaw = rows.len();
-        for (r, h) in rows.iter().enumerate() {
+        let jaw = rows.rows.len();
+        for r in 0..jaw {
+            let h = rows.get(r);
             let lateral = if jaw == 1 {
                 0.0
             } else {
@@ -1428,7 +1470,7 @@ impl Search<'_> {
                 covered += 1;
             }
         }
-        let coverage = covered as f32 / rows.len() as f32;
+        let coverage = covered as f32 / jaw as f32;
         let slopes: Vec<f32> = fit
             .iter()
             .filter(|f| f[0] >= 2.0)
