@@ -44,6 +44,7 @@ use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::arrival::{ArrivalRun, Evaluation};
@@ -324,30 +325,57 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             .time(Work::Perception, || self.perception.segment_scene(shot))?)
     }
 
-    /// The close-up of segment `index`; `None` when it shows nothing usable.
-    fn close_up(
+    /// The close-ups of segments `indices`, in that order; `None` for one that shows nothing
+    /// usable. They are rendered and cropped on rayon's threads (each depends on the world
+    /// alone), then recorded in order.
+    fn close_ups(
         &mut self,
         cell: &Cell,
         scene: &SceneView,
-        index: usize,
+        indices: std::ops::Range<usize>,
         clock: &mut AttemptClock,
-    ) -> Result<Option<ObjectView>, SimError> {
-        let Ok(point) = self.perception.table_point_m(scene, index) else {
-            return Ok(None);
-        };
-        let shot = clock.wall.time(Work::Render, || {
-            self.perception.config().render_closeup(&cell.world, point)
+    ) -> Result<Vec<Option<ObjectView>>, SimError> {
+        let points: Vec<Option<[f32; 3]>> = indices
+            .clone()
+            .map(|index| self.perception.table_point_m(scene, index).ok())
+            .collect();
+        let perception = &self.perception;
+        let shots = clock.wall.time(Work::Render, || {
+            points
+                .par_iter()
+                .map(|point| {
+                    point
+                        .map(|point| perception.config().render_closeup(&cell.world, point))
+                        .transpose()
+                })
+                .collect::<Result<Vec<_>, _>>()
         });
-        let shot = shot.map_err(PerceptionError::from)?;
-        self.observer
-            .camera_shot(&cell.world, RecordCamera::Closeup, &shot);
-        match clock.wall.time(Work::Perception, || {
-            self.perception.view_from(shot, index, point)
-        }) {
-            Ok(view) => Ok(Some(view)),
-            Err(PerceptionError::NothingInCloseup { .. } | PerceptionError::Crop(_)) => Ok(None),
-            Err(e) => Err(e.into()),
+        let shots = shots.map_err(PerceptionError::from)?;
+        for shot in shots.iter().flatten() {
+            self.observer
+                .camera_shot(&cell.world, RecordCamera::Closeup, shot);
         }
+        let perception = &self.perception;
+        let views = clock.wall.time(Work::Perception, || {
+            shots
+                .into_par_iter()
+                .zip(points)
+                .zip(indices)
+                .map(|((shot, point), index)| {
+                    let (Some(shot), Some(point)) = (shot, point) else {
+                        return Ok(None);
+                    };
+                    match perception.view_from(shot, index, point) {
+                        Ok(view) => Ok(Some(view)),
+                        Err(
+                            PerceptionError::NothingInCloseup { .. } | PerceptionError::Crop(_),
+                        ) => Ok(None),
+                        Err(e) => Err(e),
+                    }
+                })
+                .collect::<Result<Vec<_>, _>>()
+        });
+        Ok(views?)
     }
 
     /// The source's ranked grasps on `view` that can be placed in the world.
@@ -566,7 +594,14 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         };
         self.observer.grasp_planned(&cell.world, &shown);
         let exec = execute(cell, &plan, view.object, cfg, &mut clock.wall)?;
-        park(cell, plan.pregrasp_z_m, cfg, &mut clock.wall)?;
+        // A held object was carried to the basket: the carry height is clear there. Otherwise
+        // the fingers are among the objects: back up to the pre-grasp height first.
+        let up_to_z_m = if exec.grasp_success {
+            plan.pregrasp_z_m.min(cfg.carry_height_m)
+        } else {
+            plan.pregrasp_z_m
+        };
+        park(cell, up_to_z_m, cfg, &mut clock.wall)?;
         self.observer
             .grasp_done(cell, &shown, &exec, cfg.target_basket)
             .map_err(SimError::Observer)?;
@@ -661,7 +696,10 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let view = match scene.segments.is_empty() {
             true => None,
             // The largest segment: the object (the isolated table holds one).
-            false => self.close_up(cell, &scene, 0, &mut clock)?,
+            false => self
+                .close_ups(cell, &scene, 0..1, &mut clock)?
+                .pop()
+                .flatten(),
         };
         let pose = cell.world.object_pose(object.handle).ok();
         let Some(view) = view else {
@@ -844,11 +882,13 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let scene = self.look(cell, clock)?;
         let mut views = Vec::new();
         let mut candidates = Vec::new();
-        for index in 0..scene.segments.len() {
-            if let Some(view) = self.close_up(cell, &scene, index, clock)? {
-                candidates.extend(self.candidates(&view, views.len(), clock)?);
-                views.push(view);
-            }
+        for view in self
+            .close_ups(cell, &scene, 0..scene.segments.len(), clock)?
+            .into_iter()
+            .flatten()
+        {
+            candidates.extend(self.candidates(&view, views.len(), clock)?);
+            views.push(view);
         }
         candidates.sort_by(|a, b| {
             b.world

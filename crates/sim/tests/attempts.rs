@@ -145,8 +145,13 @@ fn place_a_can_in(basket: usize) {
     assert!(!on_table(&cell.world, h).unwrap());
     // Parking returns to the ready joints exactly, so wrist turns cannot add up over a
     // round's attempts (they once drove joint 6 to its limit: "unreachable").
+    // From over the basket that is one joint move: a straight line back and the wrist's turn
+    // took 6 s of sim time.
+    let t0 = cell.world.time_s();
     park(&mut cell, plan.pregrasp_z_m, &config, &mut wall).unwrap();
     assert_eq!(cell.robot.joints_rad(), cell.ready_rad);
+    let took = cell.world.time_s() - t0;
+    assert!(took < 3.0, "basket {basket}: parking took {took} s");
 }
 
 /// Closing the gripper over an empty spot of the table is a miss, not a grasp.
