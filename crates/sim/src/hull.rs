@@ -18,6 +18,7 @@
 //! procedural library object comes near either case (at most 1,262 distinct points, volumes within
 //! 7.4 %, faces bent by at most 0.15), so their colliders are what they were.
 
+use lgdm_pointcloud::mesh::Mesh;
 use rapier3d::math::Vector;
 use rapier3d::parry::mass_properties::MassProperties;
 use rapier3d::parry::shape::ConvexPolyhedron;
@@ -50,6 +51,34 @@ pub const HULL_VOLUME_TOLERANCE: f32 = 0.5;
 /// (a bend near 1) whose volume happens to come out about right; the procedural objects' merged
 /// faces bend by at most 0.15 (the same 200 objects).
 pub const HULL_FACE_BEND: f32 = 0.5;
+
+/// Below this share of its hull's volume an object is hollow or open (a bowl, a mug, a
+/// teapot with its handle, a clamp): a grasp can take a wall, a rim or a handle, so its overall
+/// width says nothing about whether the gripper can take it, and one hull would fill what the
+/// fingers need. A closed can, a box or a fruit fills its hull (0.84–1.0 on the procedural and
+/// the paper's objects; the open ones 0.14–0.79).
+pub const SOLID_FRACTION: f32 = 0.8;
+
+/// The share of its convex hull's volume `mesh` encloses, when it encloses a volume (a closed
+/// mesh). A mesh of more than [`MAX_HULL_POINTS`] vertices is measured against the hull of its
+/// [`extreme_points`].
+pub fn mesh_solid_fraction(mesh: &Mesh) -> Option<f32> {
+    let vertices: Vec<Vector> = mesh
+        .vertices
+        .iter()
+        .map(|v| Vector::from_array(*v))
+        .collect();
+    let mesh_volume = MassProperties::from_trimesh(1.0, &vertices, &mesh.triangles).mass();
+    let points = if vertices.len() > MAX_HULL_POINTS {
+        extreme_points(&vertices, HULL_DIRECTIONS)
+    } else {
+        vertices
+    };
+    let (hull, triangles) = try_convex_hull(&points).ok()?;
+    let hull_volume = MassProperties::from_trimesh(1.0, &hull, &triangles).mass();
+    let f = mesh_volume / hull_volume;
+    (f.is_finite() && f > 0.0 && f <= 1.5).then_some(f)
+}
 
 /// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
 /// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points

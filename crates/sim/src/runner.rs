@@ -251,31 +251,12 @@ pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
     narrowest_width(&points)
 }
 
-/// Below this share of its hull's volume an object is hollow or open (a bowl, a mug, a
-/// teapot with its handle): a grasp can take a wall, a rim or a handle, so its overall width
-/// says nothing about whether the gripper can take it. A closed can or a fruit fills its hull.
-pub const SOLID_FRACTION: f32 = 0.8;
+pub use crate::hull::SOLID_FRACTION;
 
 /// The share of its convex hull's volume the object's mesh encloses, when the mesh encloses a
-/// volume (a closed mesh).
+/// volume (a closed mesh): [`crate::hull::mesh_solid_fraction`] of its mesh.
 pub fn solid_fraction(world: &World, object: ObjectHandle) -> Option<f32> {
-    use rapier3d::parry::mass_properties::MassProperties;
-    use rapier3d::parry::shape::Shape;
-    use rapier3d::prelude::Vector as RVec;
-    let mesh = world.object_mesh(object).ok()?;
-    let vertices: Vec<RVec> = mesh.vertices.iter().map(|v| RVec::from_array(*v)).collect();
-    let mesh_volume = MassProperties::from_trimesh(1.0, &vertices, &mesh.triangles).mass();
-    let hull: Vec<RVec> = world
-        .object_hull_points_m(object)
-        .ok()?
-        .into_iter()
-        .map(RVec::from_array)
-        .collect();
-    let hull_volume = rapier3d::parry::shape::ConvexPolyhedron::from_convex_hull(&hull)?
-        .mass_properties(1.0)
-        .mass();
-    let f = mesh_volume / hull_volume;
-    (f.is_finite() && f > 0.0 && f <= 1.5).then_some(f)
+    crate::hull::mesh_solid_fraction(world.object_mesh(object).ok()?)
 }
 
 impl<F: FnMut(Progress)> Runner<'_, F> {

@@ -197,8 +197,8 @@ fn a_record_without_the_models_names_is_refused() {
 }
 
 /// Row 9: every object the rounds will show has its collider built before the first round — a
-/// 1 mm speck among good meshes (its single hull builds, its decomposition's parts do not) is
-/// refused when the job is prepared, naming it, not when its round comes.
+/// half-millimetre speck among good meshes (its hull encloses less than the smallest volume a
+/// collider may have) is refused when the job is prepared, naming it, not when its round comes.
 #[test]
 fn a_mesh_that_cannot_be_simulated_fails_before_the_first_round() {
     let tmp = tempfile::tempdir().unwrap();
@@ -240,7 +240,7 @@ fn a_mesh_that_cannot_be_simulated_fails_before_the_first_round() {
         ..GraspSetup::default()
     };
     assert!(GraspJob::prepare(good.clone()).is_ok());
-    cube(&meshes.join("dot/dot_01.obj"), 0.001);
+    cube(&meshes.join("dot/dot_01.obj"), 0.0005);
     let out = tmp.path().join("run");
     let with_speck = GraspSetup {
         out: Some(Output::new(&out)),
