@@ -8,15 +8,30 @@
 //! assert_eq!(config.grasp_spec().max_opening_m, config.robot.gripper.stroke_m);
 //! ```
 
+use std::path::Path;
+
 use lgdm_pointcloud::grasp::GraspSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::attempt::AttemptConfig;
-use crate::camera::CameraConfig;
+use crate::camera::{CameraConfig, ObjectDrawing};
+use crate::gripper::{GripperConfig, GripperModel};
 use crate::robot::RobotConfig;
 use crate::scenario::ScenarioConfig;
-use crate::shapes::ShapeConfig;
+use crate::shapes::{ObjectShape, ShapeConfig};
 use crate::world::WorldConfig;
+
+/// What the robot commands' options (`--gripper`, `--draw`, `--shapes`) set on top of a config
+/// file ([`SimConfig::resolve`]); `None` leaves the file's (or the default) value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ConfigOverrides {
+    /// The gripper preset.
+    pub gripper: Option<GripperModel>,
+    /// What the cameras draw.
+    pub draw: Option<ObjectDrawing>,
+    /// The objects' collider shapes.
+    pub shapes: Option<ObjectShape>,
+}
 
 /// Every constant of a sim run. Defaults are each part's.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -46,6 +61,35 @@ impl SimConfig {
     /// error naming it and where it is. Not validated here ([`SimConfig::validate`]).
     pub fn from_toml(text: &str) -> Result<SimConfig, String> {
         toml::from_str(text).map_err(|e| e.to_string().trim_end().to_string())
+    }
+
+    /// The run's constants as the robot commands take them: `file`'s config (else the
+    /// defaults) with `overrides` on top — options that set constants are applied over the
+    /// file, never silently under it — checked whole. Errors name the file and the field.
+    pub fn resolve(file: Option<&Path>, overrides: &ConfigOverrides) -> Result<SimConfig, String> {
+        let mut config = match file {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                SimConfig::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))?
+            }
+            None => SimConfig::default(),
+        };
+        if let Some(gripper) = overrides.gripper {
+            config.robot.gripper = GripperConfig::preset(gripper);
+        }
+        if let Some(draw) = overrides.draw {
+            config.cameras.draw = draw;
+        }
+        if let Some(shape) = overrides.shapes {
+            config.shapes.shape = shape;
+        }
+        if let Some(path) = file {
+            config
+                .validate()
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+        }
+        Ok(config)
     }
 
     /// The gripper as grasp sources see it: the robot's stroke and finger width, the dataset's

@@ -21,8 +21,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::camera::ObjectDrawing;
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::config::{ConfigOverrides, SimConfig};
+use lgdm_sim::gripper::GripperModel;
 use lgdm_sim::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
     PickPlaceSetup,
@@ -205,39 +205,22 @@ fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
             out.display()
         );
     }
-    let mut config = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("--config {}", path.display()))?;
-            SimConfig::from_toml(&text)
-                .map_err(|e| anyhow::anyhow!("--config {}: {e}", path.display()))?
-        }
-        None => SimConfig::default(),
-    };
-    if let Some(gripper) = args.gripper {
-        config.robot.gripper = GripperConfig::preset(match gripper {
+    let overrides = ConfigOverrides {
+        gripper: args.gripper.map(|g| match g {
             GripperArg::Robotiq2F85 => GripperModel::Robotiq2F85,
             GripperArg::Robotiq2F140 => GripperModel::Robotiq2F140,
-        });
-    }
-    if let Some(draw) = args.draw {
-        config.cameras.draw = match draw {
+        }),
+        draw: args.draw.map(|d| match d {
             DrawArg::Mesh => ObjectDrawing::Mesh,
             DrawArg::Collider => ObjectDrawing::Collider,
-        };
-    }
-    if let Some(shapes) = args.shapes {
-        config.shapes.shape = match shapes {
+        }),
+        shapes: args.shapes.map(|s| match s {
             ShapesArg::Hull => ObjectShape::Hull,
             ShapesArg::Decomposition => ObjectShape::Decomposition,
-        };
-    }
-    if let Some(path) = &args.config {
-        config
-            .validate()
-            .map_err(|e| anyhow::anyhow!("--config {}: {e}", path.display()))?;
-    }
-    Ok(config)
+        }),
+    };
+    SimConfig::resolve(args.config.as_deref(), &overrides)
+        .map_err(|e| anyhow::anyhow!("--config {e}"))
 }
 
 /// `--record` / `--record-rounds`.
