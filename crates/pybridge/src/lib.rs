@@ -12,6 +12,8 @@
 //!   interpreter.
 //! - [`experiment`]: `run_scenario`, the paper's scenarios over trials on a feature table (the
 //!   library code `lgdm train` runs).
+//! - [`sim`]: the robot (`lgdm.sim`): `lgdm sim grasp`, `pick-place` and `packing` as library
+//!   calls, with grasp sources written in Python.
 //! - [`errors`]: Rust errors → `lgdm.LgdmError` and its subclasses.
 //!
 //! Build and install into a venv with `maturin develop --release -m crates/pybridge/Cargo.toml`;
@@ -29,6 +31,7 @@ pub mod data;
 pub mod errors;
 pub mod experiment;
 pub mod model;
+pub mod sim;
 
 use pyo3::prelude::*;
 
@@ -63,5 +66,7 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data::project_to_image, m)?)?;
     m.add_function(wrap_pyfunction!(data::view_entropy, m)?)?;
     m.add_function(wrap_pyfunction!(data::best_view, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_grasp, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_pick_place, m)?)?;
     Ok(())
 }

@@ -54,3 +54,21 @@ def test_stubs_match_the_native_module():
             assert hasattr(actual, member), f"stub names {cls}.{member}, the module has none"
         public = {m for m in dir(actual) if not m.startswith("__")}
         assert public <= members, f"{cls} members missing from the stub: {public - members}"
+
+
+def test_stub_signatures_match_the_native_functions():
+    """Every native function's parameters — names, order, keyword-only or not — are the
+    stub's."""
+    tree = ast.parse(STUB.read_text())
+    for node in tree.body:
+        if not isinstance(node, ast.FunctionDef):
+            continue
+        a = node.args
+        stub = [(p.arg, "positional") for p in a.posonlyargs + a.args]
+        stub += [(p.arg, "keyword") for p in a.kwonlyargs]
+        native = inspect.signature(getattr(_lgdm, node.name))
+        actual = [
+            (p.name, "keyword" if p.kind is p.KEYWORD_ONLY else "positional")
+            for p in native.parameters.values()
+        ]
+        assert stub == actual, f"{node.name}: stub {stub}, module {actual}"

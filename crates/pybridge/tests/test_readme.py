@@ -31,3 +31,18 @@ def test_readme_python_example_runs(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "test category accuracy" in done.stdout
     assert (tmp_path / "model.lgdm").is_file()
+
+
+def test_readme_robot_example_runs(tmp_path):
+    text = README.read_text()
+    start = text.find("\n### The robot from Python")
+    assert start >= 0, "README.md has no '### The robot from Python' section"
+    blocks = re.findall(r"```python\n(.*?)```", text[start:], flags=re.DOTALL)
+    script = tmp_path / "robot.py"
+    script.write_text(blocks[0])
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    first = done.stdout.split("\n")[0].split()
+    assert float(first[0]) > 0 and int(first[1]) >= 3

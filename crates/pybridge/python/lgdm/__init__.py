@@ -8,6 +8,8 @@
 - Data: :class:`Dataset` (sequences of point clouds as numpy arrays, with labels),
   :func:`good_descriptor`, :func:`good_features`, :func:`generate_dataset`,
   :func:`project_to_image` (224×224 depth / RGB-D), :func:`view_entropy`, :func:`best_view`.
+- :mod:`lgdm.sim`: the simulated robot (``lgdm sim grasp``, ``pick-place``, ``packing``) as
+  calls, with grasp sources written in Python.
 - Errors: :class:`LgdmError` and its subclasses.
 
 Example::
@@ -22,6 +24,7 @@ Example::
     instance, category, activation, category_em = model.predict(X)
 """
 
+from . import sim
 from ._data import (
     Dataset,
     best_view,
@@ -66,5 +69,6 @@ __all__ = [
     "project_to_image",
     "run_scenario",
     "scenario_defaults",
+    "sim",
     "view_entropy",
 ]

@@ -230,3 +230,53 @@ def view_entropy(points: npt.NDArray[np.float32]) -> float:
 
 def best_view(views: list[npt.NDArray[np.float32]]) -> int | None:
     """Index of the view with the highest viewpoint entropy."""
+
+def sim_grasp(
+    *,
+    scenario_name: str,
+    grasp: Any,
+    rounds: int,
+    seed: int,
+    instances: int,
+    meshes: str | None,
+    units: list[str],
+    config_file: str | None,
+    gripper: str | None,
+    draw: str | None,
+    shapes: str | None,
+    out: str | None,
+    force: bool,
+    record_all: bool,
+    record_rounds: int | None,
+    progress: Any | None,
+) -> str:
+    """``lgdm sim grasp`` (``lgdm.sim.grasp``): results.json's text."""
+
+def sim_pick_place(
+    *,
+    scenario_name: str,
+    grasp: Any,
+    rounds: int | None,
+    attempts: int | None,
+    seed: int,
+    objects_n: int,
+    object_seed: int,
+    meshes: str | None,
+    units: list[str],
+    model: str | None,
+    replay: bool,
+    learn_always: bool,
+    confidence: float | None,
+    targets: list[str] | None,
+    arrive_after: int | None,
+    config_file: str | None,
+    gripper: str | None,
+    draw: str | None,
+    shapes: str | None,
+    out: str | None,
+    force: bool,
+    record_all: bool,
+    record_rounds: int | None,
+    progress: Any | None,
+) -> str:
+    """``lgdm sim pick-place`` / ``packing`` (``lgdm.sim``): results.json's text."""

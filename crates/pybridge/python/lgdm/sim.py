@@ -1,0 +1,300 @@
+"""``lgdm.sim``: the simulated robot — ``lgdm sim grasp``, ``pick-place`` and ``packing`` as
+calls, with the command line's options as keyword arguments.
+
+Each call plays the run in Rust (the ``lgdm-sim`` library the binary runs; the GIL is released)
+and returns its results as ``results.json`` holds them: ``result["summary"]`` (the rates, each
+with its Wilson interval), ``result["attempts"]`` (one dict per attempt), ``result["rounds"]``,
+``result["config"]`` and the wall times. With ``out=`` it writes the same run directory as the
+command line (job record, ``sim.toml``, per-round checkpoints, ``results.json``; the plots are
+the command line's own).
+
+**Grasp sources.** ``grasp`` is ``"analytic"`` (default), ``"random"``, or a callable that
+proposes grasps — how you try your own network on the robot. It is called once per look at an
+object with one argument, the robot's crop, a dict of:
+
+- ``rgb``: ``(S, S, 3)`` uint8 and ``depth``: ``(S, S)`` float32, metres along the camera's axis
+  (0 where there is no data) — the object-centred crop (``S`` = 224 by default), the camera
+  looking straight down;
+- ``focal_px``: the crop's focal length in crop pixels — a crop pixel at depth ``d`` spans
+  ``d / focal_px`` metres; ``table_depth_m``: the table's depth at the crop's centre;
+- ``stroke_m`` and ``finger_width_m``: the gripper.
+
+It returns a list (best first; empty: no grasp found) of dicts in the grasp decoders'
+convention: ``center_px`` ``(x, y)`` (x the column, y the row, crop pixels), ``angle`` (the
+opening axis, radians counter-clockwise on screen from +x; taken modulo π), ``width_px`` (the
+opening, crop pixels) and optionally ``jaw_px`` (the jaws' extent across it; default the finger
+width at the table's depth) and ``quality`` (default 1). The robot plans and executes the first
+that it can place in the world, as it does with the built-in sources. An exception in the
+callable stops the run with an :class:`LgdmError` naming the callable, the exception as its
+cause.
+
+Example::
+
+    import lgdm.sim
+
+    result = lgdm.sim.grasp(scenario="isolated", rounds=3, seed=11)
+    print(result["summary"]["grasp_success_rate"]["value"])
+
+    def nothing(crop):
+        return []  # a source that never finds a grasp
+
+    assert lgdm.sim.grasp(grasp=nothing, rounds=2)["summary"]["grasp_success_rate"]["value"] == 0
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from os import PathLike
+from typing import Any, Literal
+
+from . import _lgdm
+
+__all__ = ["GraspSource", "Progress", "grasp", "packing", "pick_place"]
+
+#: A grasp source: ``"analytic"``, ``"random"``, or a callable from the robot's crop to a list
+#: of grasps (see the module's docs).
+GraspSource = Literal["analytic", "random"] | Callable[[dict[str, Any]], list[dict[str, Any]]]
+
+#: A progress callback: ``(stage, done, total)``, e.g. ``("rounds", 3, 10)``.
+Progress = Callable[[str, int, int], object]
+
+Path = str | PathLike[str]
+
+
+def _path(p: Path | None) -> str | None:
+    return None if p is None else str(p)
+
+
+def _units(units: str | Sequence[str] | None) -> list[str]:
+    if units is None:
+        return []
+    return [units] if isinstance(units, str) else [str(u) for u in units]
+
+
+def grasp(
+    *,
+    scenario: Literal["isolated", "packed", "pile", "scattered"] = "isolated",
+    grasp: GraspSource = "analytic",
+    rounds: int = 10,
+    seed: int = 0,
+    instances: int = 5,
+    meshes: Path | None = None,
+    units: str | Sequence[str] | None = None,
+    config: Path | None = None,
+    gripper: Literal["2f-140", "2f-85"] | None = None,
+    draw: Literal["collider", "mesh"] | None = None,
+    shapes: Literal["decomposition", "hull"] | None = None,
+    out: Path | None = None,
+    force: bool = False,
+    record: bool = False,
+    record_rounds: int | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """``lgdm sim grasp``: grasp trials, each grasped object carried to the basket.
+
+    The options are the command line's (``lgdm sim grasp --help``): ``instances`` procedural
+    objects per category from ``seed``, or the meshes under ``meshes`` (with ``units``, e.g.
+    ``"mm"`` or ``["m", "cat/file.stl=mm"]``); ``config`` a ``sim.toml`` (a run directory's
+    replays that run) with ``gripper``, ``draw`` and ``shapes`` on top. Returns the results as
+    ``results.json`` holds them; ``out`` also writes the run directory.
+    """
+    text = _lgdm.sim_grasp(
+        scenario_name=scenario,
+        grasp=grasp,
+        rounds=rounds,
+        seed=seed,
+        instances=instances,
+        meshes=_path(meshes),
+        units=_units(units),
+        config_file=_path(config),
+        gripper=gripper,
+        draw=draw,
+        shapes=shapes,
+        out=_path(out),
+        force=force,
+        record_all=record,
+        record_rounds=record_rounds,
+        progress=progress,
+    )
+    return json.loads(text)
+
+
+def pick_place(
+    *,
+    scenario: Literal["scattered", "packed", "pile"] = "scattered",
+    grasp: GraspSource = "analytic",
+    rounds: int | None = None,
+    attempts: int | None = None,
+    seed: int = 0,
+    objects: int = 15,
+    object_seed: int = 0,
+    meshes: Path | None = None,
+    units: str | Sequence[str] | None = None,
+    model: Path | None = None,
+    replay: bool = True,
+    learn_always: bool = False,
+    confidence: float = 0.6,
+    arrive_after: int | None = None,
+    config: Path | None = None,
+    gripper: Literal["2f-140", "2f-85"] | None = None,
+    draw: Literal["collider", "mesh"] | None = None,
+    shapes: Literal["decomposition", "hull"] | None = None,
+    out: Path | None = None,
+    force: bool = False,
+    record: bool = False,
+    record_rounds: int | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """``lgdm sim pick-place``: the paper's pick-and-place — the robot recognises each object
+    (GOOD features, the dual memory learning from a teacher), grasps it and puts it in the
+    basket.
+
+    The options are the command line's (``lgdm sim pick-place --help``); ``replay=False`` is
+    ``--no-replay``. ``rounds`` defaults to as many as ``attempts`` when that is given, else
+    10. Returns the results as ``results.json`` holds them; ``out`` also writes the run
+    directory with the learnt ``model.lgdm``.
+    """
+    return _recognition_run(
+        None,
+        scenario=scenario,
+        grasp=grasp,
+        rounds=rounds,
+        attempts=attempts,
+        seed=seed,
+        objects=objects,
+        object_seed=object_seed,
+        meshes=meshes,
+        units=units,
+        model=model,
+        replay=replay,
+        learn_always=learn_always,
+        confidence=confidence,
+        arrive_after=arrive_after,
+        config=config,
+        gripper=gripper,
+        draw=draw,
+        shapes=shapes,
+        out=out,
+        force=force,
+        record=record,
+        record_rounds=record_rounds,
+        progress=progress,
+    )
+
+
+def packing(
+    targets: Sequence[str],
+    *,
+    scenario: Literal["scattered", "packed", "pile"] = "scattered",
+    grasp: GraspSource = "analytic",
+    rounds: int | None = None,
+    attempts: int | None = None,
+    seed: int = 0,
+    objects: int = 15,
+    object_seed: int = 0,
+    meshes: Path | None = None,
+    units: str | Sequence[str] | None = None,
+    model: Path | None = None,
+    replay: bool = True,
+    learn_always: bool = False,
+    confidence: float = 0.6,
+    arrive_after: int | None = None,
+    config: Path | None = None,
+    gripper: Literal["2f-140", "2f-85"] | None = None,
+    draw: Literal["collider", "mesh"] | None = None,
+    shapes: Literal["decomposition", "hull"] | None = None,
+    out: Path | None = None,
+    force: bool = False,
+    record: bool = False,
+    record_rounds: int | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """``lgdm sim packing``: pick-and-place's options and ``targets``, the categories packed
+    into the right basket (everything else into the left one). ``rounds`` defaults to 50 when
+    ``attempts`` is not given.
+    """
+    if isinstance(targets, str):
+        targets = [t for t in targets.split(",") if t]
+    return _recognition_run(
+        [str(t) for t in targets],
+        scenario=scenario,
+        grasp=grasp,
+        rounds=rounds,
+        attempts=attempts,
+        seed=seed,
+        objects=objects,
+        object_seed=object_seed,
+        meshes=meshes,
+        units=units,
+        model=model,
+        replay=replay,
+        learn_always=learn_always,
+        confidence=confidence,
+        arrive_after=arrive_after,
+        config=config,
+        gripper=gripper,
+        draw=draw,
+        shapes=shapes,
+        out=out,
+        force=force,
+        record=record,
+        record_rounds=record_rounds,
+        progress=progress,
+    )
+
+
+def _recognition_run(
+    targets: list[str] | None,
+    *,
+    scenario: str,
+    grasp: GraspSource,
+    rounds: int | None,
+    attempts: int | None,
+    seed: int,
+    objects: int,
+    object_seed: int,
+    meshes: Path | None,
+    units: str | Sequence[str] | None,
+    model: Path | None,
+    replay: bool,
+    learn_always: bool,
+    confidence: float,
+    arrive_after: int | None,
+    config: Path | None,
+    gripper: str | None,
+    draw: str | None,
+    shapes: str | None,
+    out: Path | None,
+    force: bool,
+    record: bool,
+    record_rounds: int | None,
+    progress: Progress | None,
+) -> dict[str, Any]:
+    text = _lgdm.sim_pick_place(
+        scenario_name=scenario,
+        grasp=grasp,
+        rounds=rounds,
+        attempts=attempts,
+        seed=seed,
+        objects_n=objects,
+        object_seed=object_seed,
+        meshes=_path(meshes),
+        units=_units(units),
+        model=_path(model),
+        replay=replay,
+        learn_always=learn_always,
+        confidence=confidence,
+        targets=targets,
+        arrive_after=arrive_after,
+        config_file=_path(config),
+        gripper=gripper,
+        draw=draw,
+        shapes=shapes,
+        out=_path(out),
+        force=force,
+        record_all=record,
+        record_rounds=record_rounds,
+        progress=progress,
+    )
+    return json.loads(text)

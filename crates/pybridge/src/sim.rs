@@ -1,0 +1,477 @@
+//! The robot from Python (`lgdm.sim`): the `lgdm-sim` library's jobs — what `lgdm sim grasp`,
+//! `pick-place` and `packing` run — with the options named as the command line's, and grasp
+//! sources written in Python.
+//!
+//! Each call prepares the job (objects built or imported, colliders, the config checked),
+//! plays it with the GIL released and returns the results as `results.json`'s JSON text; with
+//! `out` it writes the same run directory (job record, config, per-round checkpoints, results)
+//! as the command line, the plots aside.
+//!
+//! A grasp source may be a Python callable ([`CallableSource`]): it is called with the robot's
+//! crop and returns its grasps in the decoders' convention (see `lgdm/sim.py`).
+
+use std::path::PathBuf;
+
+use lgdm_pointcloud::Progress;
+use lgdm_pointcloud::grasp::decode::{DecodedGrasp, wrap_angle};
+use lgdm_pointcloud::import::MeshUnits;
+use lgdm_sim::camera::ObjectDrawing;
+use lgdm_sim::config::{ConfigOverrides, SimConfig};
+use lgdm_sim::gripper::GripperModel;
+use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource, Output, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
+use lgdm_sim::record::RecordConfig;
+use lgdm_sim::results::RunResults;
+use lgdm_sim::scenario::Scenario;
+use lgdm_sim::shapes::ObjectShape;
+use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
+use lgdm_sim::spec::{SimError, builtin_source};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::errors::{self, Kind};
+
+/// A grasp source that calls a Python callable with the robot's crop.
+#[derive(Debug)]
+pub struct CallableSource {
+    callable: Py<PyAny>,
+    name: String,
+    /// The first exception the callable raised (or its answer's problem), raised again when
+    /// the run stops.
+    error: Option<PyErr>,
+}
+
+impl CallableSource {
+    /// `callable`, named after its `__qualname__` (else its type's).
+    pub fn new(callable: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let name = callable
+            .getattr("__qualname__")
+            .or_else(|_| callable.get_type().getattr("__qualname__"))
+            .and_then(|n| n.extract::<String>())
+            .unwrap_or_else(|_| "callable".to_string());
+        Ok(Self {
+            callable: callable.clone().unbind(),
+            name: format!("python:{name}"),
+            error: None,
+        })
+    }
+
+    fn ask(&self, py: Python<'_>, query: &GraspQuery<'_>, k: usize) -> PyResult<Vec<DecodedGrasp>> {
+        let crop = query.crop;
+        let side = crop.size_px as usize;
+        let rgb: Vec<u8> = crop.rgb.iter().flatten().copied().collect();
+        let rgb = PyArray1::from_vec(py, rgb).reshape([side, side, 3])?;
+        let depth = PyArray1::from_vec(py, crop.depth_m.clone()).reshape([side, side])?;
+        let focal_px = query.intrinsics.fx / crop.window.image_px_per_map_px;
+        let d = PyDict::new(py);
+        d.set_item("rgb", rgb)?;
+        d.set_item("depth", depth)?;
+        d.set_item("focal_px", focal_px)?;
+        d.set_item("table_depth_m", crop.table_depth_m)?;
+        d.set_item("stroke_m", query.gripper.max_opening_m)?;
+        d.set_item("finger_width_m", query.gripper.finger_width_m)?;
+        let answer = self.callable.call1(py, (d,))?;
+        let answer = answer.bind(py);
+        let list = answer.cast::<PyList>().map_err(|_| {
+            errors::input(format!(
+                "returned {}, not a list of grasps",
+                answer
+                    .get_type()
+                    .name()
+                    .map_or("?".into(), |n| n.to_string())
+            ))
+        })?;
+        // The jaw's extent across the opening when the callable does not say: the finger's
+        // width at the table's depth.
+        let jaw_default = query.gripper.finger_width_m * focal_px / crop.table_depth_m;
+        let mut grasps = Vec::with_capacity(list.len().min(k));
+        for (i, item) in list.iter().enumerate().take(k) {
+            grasps.push(
+                grasp_from(&item, jaw_default)
+                    .map_err(|e| errors::input(format!("grasp {i}: {}", e.value(py))))?,
+            );
+        }
+        Ok(grasps)
+    }
+}
+
+/// One grasp from its dict: `center_px` (x, y), `angle` (rad), `width_px`, optional `jaw_px`
+/// and `quality`.
+fn grasp_from(item: &Bound<'_, PyAny>, jaw_default: f32) -> PyResult<DecodedGrasp> {
+    let d = item
+        .cast::<PyDict>()
+        .map_err(|_| errors::input("is not a dict"))?;
+    let get = |key: &str| -> PyResult<Option<Bound<'_, PyAny>>> { d.get_item(key) };
+    let need = |key: &str| -> PyResult<Bound<'_, PyAny>> {
+        get(key)?.ok_or_else(|| errors::input(format!("has no `{key}`")))
+    };
+    let number = |key: &str, v: Bound<'_, PyAny>| -> PyResult<f32> {
+        let x: f64 = v
+            .extract()
+            .map_err(|_| errors::input(format!("`{key}` is not a number")))?;
+        if !x.is_finite() {
+            return Err(errors::input(format!("`{key}` is {x}")));
+        }
+        Ok(x as f32)
+    };
+    let centre: Vec<f64> = need("center_px")?
+        .extract()
+        .map_err(|_| errors::input("`center_px` is not a pair of numbers"))?;
+    let &[x, y] = centre.as_slice() else {
+        return Err(errors::input("`center_px` is not a pair of numbers"));
+    };
+    if !(x.is_finite() && y.is_finite()) {
+        return Err(errors::input("`center_px` is not finite"));
+    }
+    let width_px = number("width_px", need("width_px")?)?;
+    if width_px <= 0.0 {
+        return Err(errors::input(format!("`width_px` is {width_px}")));
+    }
+    let jaw_px = match get("jaw_px")? {
+        Some(v) => number("jaw_px", v)?,
+        None => jaw_default,
+    };
+    let quality = match get("quality")? {
+        Some(v) => number("quality", v)?,
+        None => 1.0,
+    };
+    Ok(DecodedGrasp {
+        center_px: [x as f32, y as f32],
+        angle: wrap_angle(number("angle", need("angle")?)?),
+        width_px,
+        jaw_px,
+        quality,
+    })
+}
+
+impl GraspSource for CallableSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn grasps(
+        &mut self,
+        query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError> {
+        if self.error.is_some() {
+            return Err(self.failed("it failed before"));
+        }
+        match Python::attach(|py| self.ask(py, query, k)) {
+            Ok(grasps) => Ok(grasps),
+            Err(e) => {
+                let message = Python::attach(|py| e.value(py).to_string());
+                self.error = Some(e);
+                Err(self.failed(&message))
+            }
+        }
+    }
+}
+
+impl CallableSource {
+    fn failed(&self, message: &str) -> SourceError {
+        SourceError::Failed {
+            source_name: self.name.clone(),
+            source: message.to_string().into(),
+        }
+    }
+}
+
+/// The grasp source `grasp` names (`analytic`, `random`) or is (a callable).
+enum Source {
+    Builtin(String),
+    Callable(CallableSource),
+}
+
+impl Source {
+    fn from_py(grasp: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(name) = grasp.extract::<String>() {
+            return match name.as_str() {
+                "analytic" | "random" => Ok(Source::Builtin(name)),
+                "network" => Err(errors::new(
+                    Kind::Config,
+                    "grasp=\"network\" needs the autoencoder bridge, which this module is built \
+                     without: run `lgdm sim … --grasp network`, or pass the network as a \
+                     callable (see lgdm.sim)",
+                )),
+                other => Err(errors::new(
+                    Kind::Config,
+                    format!(
+                        "unknown grasp source `{other}` (known: analytic, random, or a callable)"
+                    ),
+                )),
+            };
+        }
+        if grasp.is_callable() {
+            return Ok(Source::Callable(CallableSource::new(grasp)?));
+        }
+        Err(errors::new(
+            Kind::Config,
+            "grasp must be \"analytic\", \"random\" or a callable",
+        ))
+    }
+}
+
+/// Reports progress to an optional Python callable `(stage, done, total)`; its first exception
+/// is kept and raised when the run ends.
+struct Reporter {
+    callback: Option<Py<PyAny>>,
+    error: Option<PyErr>,
+}
+
+impl Reporter {
+    fn report(&mut self, p: Progress) {
+        let Some(cb) = &self.callback else { return };
+        if self.error.is_some() {
+            return;
+        }
+        if let Err(e) = Python::attach(|py| cb.call1(py, (p.stage, p.done, p.total)).map(|_| ())) {
+            self.error = Some(e);
+        }
+    }
+}
+
+/// A sim error as the matching exception: bad settings and inputs are `ConfigError` /
+/// `InputError`, the rest `LgdmError`.
+fn sim_error(e: SimError) -> PyErr {
+    let kind = match &e {
+        SimError::Setting { .. } | SimError::UnknownSource(_) => Kind::Config,
+        SimError::Objects(_) | SimError::EmptyLibrary => Kind::Input,
+        _ => Kind::Lgdm,
+    };
+    let mut message = e.to_string();
+    let mut cause = std::error::Error::source(&e);
+    while let Some(c) = cause {
+        message.push_str(&format!(": {c}"));
+        cause = c.source();
+    }
+    errors::new(kind, message)
+}
+
+/// The run's objects: `meshes` (with `units`) or the procedural ones.
+fn objects(
+    meshes: Option<PathBuf>,
+    units: &[String],
+    procedural: ObjectSource,
+) -> PyResult<ObjectSource> {
+    let Some(dir) = meshes else {
+        return Ok(procedural);
+    };
+    let units =
+        MeshUnits::parse(units).map_err(|r| errors::new(Kind::Config, format!("units: {r}")))?;
+    Ok(ObjectSource::Meshes { dir, units })
+}
+
+/// The config: `config`'s file with `gripper`, `draw`, `shapes` on top.
+fn config(
+    file: Option<PathBuf>,
+    gripper: Option<&str>,
+    draw: Option<&str>,
+    shapes: Option<&str>,
+) -> PyResult<SimConfig> {
+    let bad = |what: &str, v: &str, known: &str| {
+        errors::new(
+            Kind::Config,
+            format!("{what}: unknown `{v}` (known: {known})"),
+        )
+    };
+    let overrides = ConfigOverrides {
+        gripper: gripper
+            .map(|g| match g {
+                "2f-85" => Ok(GripperModel::Robotiq2F85),
+                "2f-140" => Ok(GripperModel::Robotiq2F140),
+                other => Err(bad("gripper", other, "2f-140, 2f-85")),
+            })
+            .transpose()?,
+        draw: draw
+            .map(|d| match d {
+                "collider" => Ok(ObjectDrawing::Collider),
+                "mesh" => Ok(ObjectDrawing::Mesh),
+                other => Err(bad("draw", other, "collider, mesh")),
+            })
+            .transpose()?,
+        shapes: shapes
+            .map(|s| match s {
+                "decomposition" => Ok(ObjectShape::Decomposition),
+                "hull" => Ok(ObjectShape::Hull),
+                other => Err(bad("shapes", other, "decomposition, hull")),
+            })
+            .transpose()?,
+    };
+    SimConfig::resolve(file.as_deref(), &overrides)
+        .map_err(|e| errors::new(Kind::Config, format!("config {e}")))
+}
+
+fn record(record: bool, record_rounds: Option<usize>) -> Option<RecordConfig> {
+    (record || record_rounds.is_some()).then(|| RecordConfig {
+        first_rounds: record_rounds,
+        ..RecordConfig::default()
+    })
+}
+
+fn scenario(name: &str) -> PyResult<Scenario> {
+    name.parse()
+        .map_err(|e: lgdm_sim::scenario::UnknownScenario| {
+            errors::new(Kind::Config, format!("scenario: {e}"))
+        })
+}
+
+/// Plays `play` with the source `grasp` names, the GIL released; the callable's or the
+/// progress callback's exception, if any, is raised with the run's error as its context.
+fn play(
+    py: Python<'_>,
+    grasp: &Bound<'_, PyAny>,
+    seed: u64,
+    progress: Option<Py<PyAny>>,
+    play: impl FnOnce(&mut dyn GraspSource, &mut dyn FnMut(Progress)) -> Result<RunResults, SimError>
+    + Send,
+) -> PyResult<String> {
+    let mut source = Source::from_py(grasp)?;
+    let mut reporter = Reporter {
+        callback: progress,
+        error: None,
+    };
+    let (result, source) = py.detach(|| {
+        let mut report = |p: Progress| reporter.report(p);
+        let result = match &mut source {
+            Source::Builtin(name) => match builtin_source(name, seed) {
+                Ok(mut s) => play(s.as_mut(), &mut report),
+                Err(e) => Err(e),
+            },
+            Source::Callable(c) => play(c, &mut report),
+        };
+        (result, source)
+    });
+    if let Source::Callable(c) = source
+        && let Some(e) = c.error
+    {
+        let err = errors::new(
+            Kind::Lgdm,
+            format!("the grasp callable {} failed: {}", c.name, e.value(py)),
+        );
+        err.set_cause(py, Some(e));
+        return Err(err);
+    }
+    if let Some(e) = reporter.error {
+        return Err(e);
+    }
+    let results = result.map_err(sim_error)?;
+    serde_json::to_string(&results)
+        .map_err(|e| errors::new(Kind::Internal, format!("results to JSON: {e}")))
+}
+
+/// `lgdm sim grasp`: returns results.json's text.
+#[pyfunction]
+#[pyo3(signature = (*, scenario_name, grasp, rounds, seed, instances, meshes, units, config_file,
+    gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
+#[allow(clippy::too_many_arguments)]
+pub fn sim_grasp(
+    py: Python<'_>,
+    scenario_name: &str,
+    grasp: &Bound<'_, PyAny>,
+    rounds: usize,
+    seed: u64,
+    instances: usize,
+    meshes: Option<PathBuf>,
+    units: Vec<String>,
+    config_file: Option<PathBuf>,
+    gripper: Option<&str>,
+    draw: Option<&str>,
+    shapes: Option<&str>,
+    out: Option<PathBuf>,
+    force: bool,
+    record_all: bool,
+    record_rounds: Option<usize>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let setup = GraspSetup {
+        scenario: scenario(scenario_name)?,
+        rounds,
+        seed,
+        objects: Some(objects(
+            meshes,
+            &units,
+            ObjectSource::Procedural { instances, seed },
+        )?),
+        config: config(config_file, gripper, draw, shapes)?,
+        record: record(record_all, record_rounds),
+        out: out.map(|dir| Output { dir, force }),
+        ae_checkpoint: None,
+    };
+    let job = py.detach(|| GraspJob::prepare(setup)).map_err(sim_error)?;
+    play(py, grasp, seed, progress, |source, report| {
+        job.run(source, report)
+    })
+}
+
+/// `lgdm sim pick-place` (no `targets`) and `lgdm sim packing`: returns results.json's text.
+#[pyfunction]
+#[pyo3(signature = (*, scenario_name, grasp, rounds, attempts, seed, objects_n, object_seed,
+    meshes, units, model, replay, learn_always, confidence, targets, arrive_after, config_file,
+    gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
+#[allow(clippy::too_many_arguments)]
+pub fn sim_pick_place(
+    py: Python<'_>,
+    scenario_name: &str,
+    grasp: &Bound<'_, PyAny>,
+    rounds: Option<usize>,
+    attempts: Option<usize>,
+    seed: u64,
+    objects_n: usize,
+    object_seed: u64,
+    meshes: Option<PathBuf>,
+    units: Vec<String>,
+    model: Option<PathBuf>,
+    replay: bool,
+    learn_always: bool,
+    confidence: Option<f64>,
+    targets: Option<Vec<String>>,
+    arrive_after: Option<usize>,
+    config_file: Option<PathBuf>,
+    gripper: Option<&str>,
+    draw: Option<&str>,
+    shapes: Option<&str>,
+    out: Option<PathBuf>,
+    force: bool,
+    record_all: bool,
+    record_rounds: Option<usize>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let defaults = RecognitionConfig::default();
+    let setup = PickPlaceSetup {
+        scenario: scenario(scenario_name)?,
+        rounds,
+        attempts,
+        seed,
+        objects: objects(
+            meshes,
+            &units,
+            ObjectSource::Procedural {
+                instances: 5,
+                seed: object_seed,
+            },
+        )?,
+        set_size: objects_n,
+        model,
+        recognition: RecognitionConfig {
+            replay,
+            learn_known: learn_always,
+            confidence_threshold: confidence.unwrap_or(defaults.confidence_threshold),
+            ..defaults
+        },
+        encoder: (GoodEncoder.name().to_string(), GoodEncoder.dim()),
+        targets,
+        arrive_after,
+        config: config(config_file, gripper, draw, shapes)?,
+        record: record(record_all, record_rounds),
+        out: out.map(|dir| Output { dir, force }),
+        ae_checkpoint: None,
+    };
+    let job = py
+        .detach(|| PickPlaceJob::prepare(setup))
+        .map_err(sim_error)?;
+    play(py, grasp, seed, progress, |source, report| {
+        job.run(source, Box::new(GoodEncoder), report)
+    })
+}

@@ -1,0 +1,175 @@
+"""``lgdm.sim``: the robot from Python — results as ``results.json`` holds them, the same run as
+the command line's, grasp sources written in Python, typed errors."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import re
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_cli import _find_cli
+
+import lgdm
+import lgdm.sim
+
+
+def without_wall(results: dict) -> dict:
+    """The results but for wall-clock times, which no two runs share."""
+    r = json.loads(json.dumps(results))
+    r.pop("wall", None)
+    for key in ("attempts", "rounds"):
+        for item in r.get(key, []):
+            item.pop("wall", None)
+    return r
+
+
+def test_grasp_returns_the_results_and_writes_the_run_directory(tmp_path: Path):
+    seen = []
+    r = lgdm.sim.grasp(
+        scenario="isolated",
+        grasp="analytic",
+        rounds=3,
+        seed=11,
+        out=tmp_path / "run",
+        progress=lambda stage, done, total: seen.append((stage, done, total)),
+    )
+    s = r["summary"]
+    assert s["attempts"] == len(r["attempts"]) >= 3
+    assert s["grasp_success_rate"]["successes"] > 0
+    assert {"value", "wilson_low", "wilson_high"} <= set(s["placement_success_rate"])
+    assert seen[-1] == ("rounds", 3, 3)
+    written = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert without_wall(written) == without_wall(r)
+    assert (tmp_path / "run" / "sim.toml").is_file()
+
+
+def test_a_callable_that_finds_nothing_is_asked_every_attempt():
+    crops = []
+
+    def nothing(crop: dict) -> list:
+        crops.append(crop)
+        return []
+
+    r = lgdm.sim.grasp(grasp=nothing, rounds=3, seed=11)
+    s = r["summary"]
+    assert s["grasp_success_rate"]["value"] == 0.0
+    assert len(crops) >= s["attempts"] >= 3
+    assert {a["reason"] for a in r["attempts"]} <= {"no_grasp_found", "wider_than_gripper"}
+    crop = crops[0]
+    side = crop["rgb"].shape[0]
+    assert crop["rgb"].shape == (side, side, 3) and crop["rgb"].dtype == np.uint8
+    assert crop["depth"].shape == (side, side) and crop["depth"].dtype == np.float32
+    # The table is under the object: the depth at the table is the crop's table depth.
+    assert 0.3 < crop["table_depth_m"] < 0.7
+    assert np.nanmax(crop["depth"]) == pytest.approx(crop["table_depth_m"], abs=0.05)
+    assert crop["focal_px"] > 0 and crop["stroke_m"] == pytest.approx(0.14)
+
+
+def test_a_callable_gives_the_grasps_the_analytic_source_would():
+    """A callable answering with what the analytic source answers (through a first run's
+    recorded crop grasps) drives the robot to the same outcomes."""
+    reference = lgdm.sim.grasp(rounds=2, seed=5)
+    recorded = [a["grasp"]["crop"] for a in reference["attempts"] if a["grasp"]]
+    assert recorded
+    asked = iter(recorded)
+
+    def replay(crop: dict) -> list:
+        g = next(asked, None)
+        return [] if g is None else [g]
+
+    r = lgdm.sim.grasp(grasp=replay, rounds=1, seed=5)
+    assert r["attempts"][0]["grasp"]["crop"]["center_px"] == recorded[0]["center_px"]
+    assert r["attempts"][0]["grasp_success"] == reference["attempts"][0]["grasp_success"]
+
+
+def test_a_failing_callable_names_itself_and_keeps_its_exception():
+    def broken_network(crop: dict) -> list:
+        raise ValueError("weights missing")
+
+    with pytest.raises(lgdm.LgdmError, match=r"broken_network.*weights missing") as e:
+        lgdm.sim.grasp(grasp=broken_network, rounds=1)
+    assert isinstance(e.value.__cause__, ValueError)
+
+    def not_a_list(crop: dict) -> object:
+        return 3
+
+    with pytest.raises(lgdm.LgdmError, match="not a list"):
+        lgdm.sim.grasp(grasp=not_a_list, rounds=1)
+
+    def no_width(crop: dict) -> list:
+        return [{"center_px": (112, 112), "angle": 0.0}]
+
+    with pytest.raises(lgdm.LgdmError, match="width_px"):
+        lgdm.sim.grasp(grasp=no_width, rounds=1)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"scenario": "nowhere"}, "scenario"),
+        ({"grasp": "psychic"}, "psychic"),
+        ({"grasp": "network"}, "network"),
+        ({"gripper": "2f-300"}, "gripper"),
+        ({"rounds": 0}, "rounds"),
+    ],
+)
+def test_bad_settings_are_config_errors_naming_them(kwargs: dict, field: str):
+    with pytest.raises(lgdm.ConfigError, match=field):
+        lgdm.sim.grasp(**kwargs)
+
+
+def test_pick_place_and_packing_recognise_and_place():
+    r = lgdm.sim.pick_place(attempts=4, seed=1)
+    s = r["summary"]
+    assert s["attempts"] == 4
+    assert s["recognition_accuracy"] is not None
+    p = lgdm.sim.packing(["mug", "can"], rounds=1, seed=1)
+    assert "packing" in p["summary"]
+    with pytest.raises(lgdm.LgdmError, match="spaceship"):
+        lgdm.sim.packing(["spaceship"], rounds=1)
+
+
+CLI_ONLY = {"resume", "help", "ae-checkpoint", "encoder", "progress"}
+
+
+@pytest.mark.parametrize(
+    "command, function",
+    [
+        ("grasp", lgdm.sim.grasp),
+        ("pick-place", lgdm.sim.pick_place),
+        ("packing", lgdm.sim.packing),
+    ],
+)
+def test_keywords_are_the_command_lines_options(command: str, function):
+    cli = _find_cli()
+    if cli is None:
+        pytest.skip("the lgdm binary is not built (cargo build --release -p lgdm-cli)")
+    text = subprocess.run(
+        [str(cli), "sim", command, "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    options = set(re.findall(r"^\s+(?:-\w, )?--([a-z][a-z0-9-]*)", text, re.M)) - CLI_ONLY
+    keywords = {
+        {"replay": "no-replay"}.get(name, name.replace("_", "-"))
+        for name in inspect.signature(function).parameters
+    } - {"progress"}
+    assert keywords == options, f"Python only: {keywords - options}, CLI only: {options - keywords}"
+
+
+def test_the_same_run_as_the_command_line(tmp_path: Path):
+    cli = _find_cli()
+    if cli is None:
+        pytest.skip("the lgdm binary is not built (cargo build --release -p lgdm-cli)")
+    args = ["--scenario", "packed", "--rounds", "1", "--seed", "3", "--gripper", "2f-85"]
+    subprocess.run(
+        [str(cli), "sim", "grasp", *args, "--progress", "none", "--out", str(tmp_path / "cli")],
+        capture_output=True,
+        check=True,
+    )
+    r = lgdm.sim.grasp(scenario="packed", rounds=1, seed=3, gripper="2f-85", out=tmp_path / "py")
+    cli_results = json.loads((tmp_path / "cli" / "results.json").read_text())
+    assert without_wall(cli_results) == without_wall(r)
+    assert (tmp_path / "cli" / "sim.toml").read_text() == (tmp_path / "py" / "sim.toml").read_text()
