@@ -68,5 +68,6 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data::best_view, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_grasp, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_pick_place, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_resume, m)?)?;
     Ok(())
 }

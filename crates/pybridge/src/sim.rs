@@ -18,7 +18,9 @@ use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::config::{ConfigOverrides, SimConfig};
 use lgdm_sim::gripper::GripperModel;
-use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource, Output, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::job::{
+    GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
+};
 use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
 use lgdm_sim::record::RecordConfig;
 use lgdm_sim::results::RunResults;
@@ -28,7 +30,7 @@ use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
 use lgdm_sim::spec::{SimError, builtin_source};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyString};
 
 use crate::errors::{self, Kind};
 
@@ -474,4 +476,65 @@ pub fn sim_pick_place(
     play(py, grasp, seed, progress, |source, report| {
         job.run(source, Box::new(GoodEncoder), report)
     })
+}
+
+/// Finishes the interrupted run in `run_dir` with its own settings (its `job.json`), as
+/// `lgdm sim … --resume` does: returns results.json's text. `grasp` is the source the run
+/// used — by default the one its record names; a Python callable must be passed again (the
+/// same `__qualname__`).
+#[pyfunction]
+#[pyo3(signature = (run_dir, *, grasp, progress))]
+pub fn sim_resume(
+    py: Python<'_>,
+    run_dir: PathBuf,
+    grasp: Option<&Bound<'_, PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let record = JobRecord::read(&run_dir).map_err(sim_error)?;
+    let recorded = PyString::new(py, &record.grasp_source).into_any();
+    let grasp = match grasp {
+        Some(g) => g.clone(),
+        None if record.grasp_source.starts_with("python:") => {
+            return Err(errors::new(
+                Kind::Config,
+                format!(
+                    "the run in {} used the Python callable {}: pass it again as grasp=",
+                    run_dir.display(),
+                    record.grasp_source
+                ),
+            ));
+        }
+        None => recorded,
+    };
+    match record.job {
+        JobKind::Grasp(mut setup) => {
+            setup.out = Some(Output::new(&run_dir));
+            let seed = setup.seed;
+            let job = py.detach(|| GraspJob::prepare(*setup)).map_err(sim_error)?;
+            play(py, &grasp, seed, progress, |source, report| {
+                job.resume(source, report)
+            })
+        }
+        JobKind::PickPlace(mut setup) => {
+            if setup.encoder.0 != GoodEncoder.name() {
+                return Err(errors::new(
+                    Kind::Config,
+                    format!(
+                        "the run in {} recognises with the `{}` encoder, which this module is \
+                         built without: resume it with `lgdm sim … --resume`",
+                        run_dir.display(),
+                        setup.encoder.0
+                    ),
+                ));
+            }
+            setup.out = Some(Output::new(&run_dir));
+            let seed = setup.seed;
+            let job = py
+                .detach(|| PickPlaceJob::prepare(*setup))
+                .map_err(sim_error)?;
+            play(py, &grasp, seed, progress, |source, report| {
+                job.resume(source, Box::new(GoodEncoder), report)
+            })
+        }
+    }
 }

@@ -173,3 +173,37 @@ def test_the_same_run_as_the_command_line(tmp_path: Path):
     cli_results = json.loads((tmp_path / "cli" / "results.json").read_text())
     assert without_wall(cli_results) == without_wall(r)
     assert (tmp_path / "cli" / "sim.toml").read_text() == (tmp_path / "py" / "sim.toml").read_text()
+
+
+def counting_source(fail_at: int | None):
+    """A source that finds nothing, failing at its `fail_at`-th call (a crash mid-run)."""
+    calls = []
+
+    def source(crop: dict) -> list:
+        calls.append(1)
+        if fail_at is not None and len(calls) == fail_at:
+            raise RuntimeError("interrupted")
+        return []
+
+    return source
+
+
+def test_an_interrupted_run_resumes_to_the_uninterrupted_results(tmp_path: Path):
+    straight = lgdm.sim.grasp(grasp=counting_source(None), rounds=4, seed=2, out=tmp_path / "a")
+    with pytest.raises(lgdm.LgdmError, match="interrupted"):
+        lgdm.sim.grasp(grasp=counting_source(5), rounds=4, seed=2, out=tmp_path / "b")
+    assert not (tmp_path / "b" / "results.json").exists()
+    with pytest.raises(lgdm.ConfigError, match="pass it again"):
+        lgdm.sim.resume(tmp_path / "b")
+    resumed = lgdm.sim.resume(tmp_path / "b", grasp=counting_source(None))
+    assert without_wall(resumed) == without_wall(straight)
+    a = json.loads((tmp_path / "a" / "results.json").read_text())
+    b = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert without_wall(a) == without_wall(b)
+
+
+def test_a_pick_place_run_resumes_from_its_record(tmp_path: Path):
+    straight = lgdm.sim.pick_place(rounds=2, seed=4, out=tmp_path / "a")
+    (tmp_path / "a" / "results.json").unlink()
+    resumed = lgdm.sim.resume(tmp_path / "a")
+    assert without_wall(resumed) == without_wall(straight)

@@ -280,3 +280,7 @@ def sim_pick_place(
     progress: Any | None,
 ) -> str:
     """``lgdm sim pick-place`` / ``packing`` (``lgdm.sim``): results.json's text."""
+
+def sim_resume(run_dir: str, *, grasp: Any | None, progress: Any | None) -> str:
+    """Finishes the interrupted sim run in ``run_dir`` (``lgdm.sim.resume``): results.json's
+    text."""

@@ -50,7 +50,7 @@ from typing import Any, Literal
 
 from . import _lgdm
 
-__all__ = ["GraspSource", "Progress", "grasp", "packing", "pick_place"]
+__all__ = ["GraspSource", "Progress", "grasp", "packing", "pick_place", "resume"]
 
 #: A grasp source: ``"analytic"``, ``"random"``, or a callable from the robot's crop to a list
 #: of grasps (see the module's docs).
@@ -242,6 +242,21 @@ def packing(
         record_rounds=record_rounds,
         progress=progress,
     )
+
+
+def resume(
+    run_dir: Path,
+    *,
+    grasp: GraspSource | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """Finishes the interrupted run in ``run_dir`` with its own settings, as ``lgdm sim …
+    --resume`` does: the rounds it finished are kept, the rest are played, and the results, model
+    and recordings equal those of a run never stopped. ``grasp`` defaults to the source the
+    run's record names; a run that used a Python callable needs it again (the same
+    ``__qualname__``).
+    """
+    return json.loads(_lgdm.sim_resume(str(run_dir), grasp=grasp, progress=progress))
 
 
 def _recognition_run(
