@@ -21,7 +21,7 @@ use lgdm_sim::gripper::GripperModel;
 use lgdm_sim::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
 };
-use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
+use lgdm_sim::recognize::{EncoderError, GoodEncoder, RecognitionConfig, ViewEncoder};
 use lgdm_sim::record::RecordConfig;
 use lgdm_sim::results::RunResults;
 use lgdm_sim::scenario::Scenario;
@@ -180,6 +180,109 @@ impl CallableSource {
     }
 }
 
+/// A view encoder that calls a Python callable with each view's point cloud.
+#[derive(Debug)]
+pub struct CallableEncoder {
+    callable: Py<PyAny>,
+    name: String,
+    dim: usize,
+    /// The first exception the callable raised (or its answer's problem), shared with the
+    /// caller: the job owns the encoder.
+    error: std::sync::Arc<std::sync::Mutex<Option<PyErr>>>,
+}
+
+impl CallableEncoder {
+    /// `(callable, dim)`: named `python:<__qualname__>`.
+    fn new(callable: &Bound<'_, PyAny>, dim: usize) -> PyResult<Self> {
+        if !callable.is_callable() || dim == 0 {
+            return Err(errors::new(
+                Kind::Config,
+                "encoder must be \"good\" or (callable, dim) with dim ≥ 1",
+            ));
+        }
+        let name = CallableSource::new(callable)?.name;
+        Ok(Self {
+            callable: callable.clone().unbind(),
+            name,
+            dim,
+            error: Default::default(),
+        })
+    }
+
+    fn call(
+        &self,
+        py: Python<'_>,
+        view: &lgdm_pointcloud::PointCloud,
+    ) -> PyResult<Option<Vec<f32>>> {
+        let n = view.points.len();
+        let points: Vec<f32> = view.points.iter().flatten().copied().collect();
+        let points = PyArray1::from_vec(py, points).reshape([n, 3])?;
+        let colors = match &view.colors {
+            Some(c) => {
+                let c: Vec<u8> = c.iter().flatten().copied().collect();
+                Some(PyArray1::from_vec(py, c).reshape([n, 3])?)
+            }
+            None => None,
+        };
+        let answer = self.callable.call1(py, (points, colors))?;
+        let answer = answer.bind(py);
+        if answer.is_none() {
+            return Ok(None);
+        }
+        let feature: Vec<f32> = answer
+            .call_method0("__array__")
+            .and_then(|a| a.call_method1("ravel", ()))
+            .and_then(|a| a.call_method1("tolist", ()))
+            .and_then(|a| a.extract())
+            .or_else(|_| answer.extract())
+            .map_err(|_| errors::input("returned neither None nor a vector of numbers"))?;
+        if feature.len() != self.dim {
+            return Err(errors::input(format!(
+                "returned {} values, not the {} it was declared with",
+                feature.len(),
+                self.dim
+            )));
+        }
+        if feature.iter().any(|v| !v.is_finite()) {
+            return Err(errors::input("returned a value that is not finite"));
+        }
+        Ok(Some(feature))
+    }
+}
+
+impl ViewEncoder for CallableEncoder {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+
+    fn encode(
+        &mut self,
+        views: &[lgdm_pointcloud::PointCloud],
+        _camera: &lgdm_pointcloud::render::Camera,
+    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError> {
+        if self.error.lock().map_or(true, |e| e.is_some()) {
+            return Err(format!("the encoder {} failed before", self.name).into());
+        }
+        let answer = Python::attach(|py| {
+            views
+                .iter()
+                .map(|v| self.call(py, v))
+                .collect::<PyResult<Vec<_>>>()
+        });
+        answer.map_err(|e| {
+            let message = Python::attach(|py| e.value(py).to_string());
+            if let Ok(mut slot) = self.error.lock() {
+                *slot = Some(e);
+            }
+            format!("the encoder {}: {message}", self.name).into()
+        })
+    }
+}
+
 /// The grasp source `grasp` names (`analytic`, `random`) or is (a callable).
 enum Source {
     Builtin(String),
@@ -326,6 +429,7 @@ fn play(
     grasp: &Bound<'_, PyAny>,
     seed: u64,
     progress: Option<Py<PyAny>>,
+    encoder_error: Option<std::sync::Arc<std::sync::Mutex<Option<PyErr>>>>,
     play: impl FnOnce(&mut dyn GraspSource, &mut dyn FnMut(Progress)) -> Result<RunResults, SimError>
     + Send,
 ) -> PyResult<String> {
@@ -345,6 +449,14 @@ fn play(
         };
         (result, source)
     });
+    if let Some(e) = encoder_error.and_then(|cell| cell.lock().ok()?.take()) {
+        let err = errors::new(
+            Kind::Lgdm,
+            format!("the view encoder failed: {}", e.value(py)),
+        );
+        err.set_cause(py, Some(e));
+        return Err(err);
+    }
     if let Source::Callable(c) = source
         && let Some(e) = c.error
     {
@@ -402,7 +514,7 @@ pub fn sim_grasp(
         ae_checkpoint: None,
     };
     let job = py.detach(|| GraspJob::prepare(setup)).map_err(sim_error)?;
-    play(py, grasp, seed, progress, |source, report| {
+    play(py, grasp, seed, progress, None, |source, report| {
         job.run(source, report)
     })
 }
@@ -410,8 +522,8 @@ pub fn sim_grasp(
 /// `lgdm sim pick-place` (no `targets`) and `lgdm sim packing`: returns results.json's text.
 #[pyfunction]
 #[pyo3(signature = (*, scenario_name, grasp, rounds, attempts, seed, objects_n, object_seed,
-    meshes, units, model, replay, learn_always, confidence, targets, arrive_after, config_file,
-    gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
+    meshes, units, model, replay, learn_always, encoder, confidence, targets, arrive_after,
+    config_file, gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
 #[allow(clippy::too_many_arguments)]
 pub fn sim_pick_place(
     py: Python<'_>,
@@ -427,6 +539,7 @@ pub fn sim_pick_place(
     model: Option<PathBuf>,
     replay: bool,
     learn_always: bool,
+    encoder: &Bound<'_, PyAny>,
     confidence: Option<f64>,
     targets: Option<Vec<String>>,
     arrive_after: Option<usize>,
@@ -441,6 +554,33 @@ pub fn sim_pick_place(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let defaults = RecognitionConfig::default();
+    let callable = match encoder.extract::<String>() {
+        Ok(name) if name == GoodEncoder.name() => None,
+        Ok(other) => {
+            return Err(errors::new(
+                Kind::Config,
+                format!(
+                    "encoder: `{other}` is not known here (\"good\", or (callable, dim); `ae` \
+                     needs the command line's ae build)"
+                ),
+            ));
+        }
+        Err(_) => {
+            let (callable, dim): (Bound<'_, PyAny>, usize) = encoder.extract().map_err(|_| {
+                errors::new(Kind::Config, "encoder must be \"good\" or (callable, dim)")
+            })?;
+            Some(CallableEncoder::new(&callable, dim)?)
+        }
+    };
+    let encoder_id = match &callable {
+        Some(c) => (c.name.clone(), c.dim),
+        None => (GoodEncoder.name().to_string(), GoodEncoder.dim()),
+    };
+    let encoder_error = callable.as_ref().map(|c| c.error.clone());
+    let encoder: Box<dyn ViewEncoder + Send> = match callable {
+        Some(c) => Box::new(c),
+        None => Box::new(GoodEncoder),
+    };
     let setup = PickPlaceSetup {
         scenario: scenario(scenario_name)?,
         rounds,
@@ -462,7 +602,7 @@ pub fn sim_pick_place(
             confidence_threshold: confidence.unwrap_or(defaults.confidence_threshold),
             ..defaults
         },
-        encoder: (GoodEncoder.name().to_string(), GoodEncoder.dim()),
+        encoder: encoder_id,
         targets,
         arrive_after,
         config: config(config_file, gripper, draw, shapes)?,
@@ -473,9 +613,14 @@ pub fn sim_pick_place(
     let job = py
         .detach(|| PickPlaceJob::prepare(setup))
         .map_err(sim_error)?;
-    play(py, grasp, seed, progress, |source, report| {
-        job.run(source, Box::new(GoodEncoder), report)
-    })
+    play(
+        py,
+        grasp,
+        seed,
+        progress,
+        encoder_error,
+        |source, report| job.run(source, encoder, report),
+    )
 }
 
 /// Finishes the interrupted run in `run_dir` with its own settings (its `job.json`), as
@@ -511,7 +656,7 @@ pub fn sim_resume(
             setup.out = Some(Output::new(&run_dir));
             let seed = setup.seed;
             let job = py.detach(|| GraspJob::prepare(*setup)).map_err(sim_error)?;
-            play(py, &grasp, seed, progress, |source, report| {
+            play(py, &grasp, seed, progress, None, |source, report| {
                 job.resume(source, report)
             })
         }
@@ -532,7 +677,7 @@ pub fn sim_resume(
             let job = py
                 .detach(|| PickPlaceJob::prepare(*setup))
                 .map_err(sim_error)?;
-            play(py, &grasp, seed, progress, |source, report| {
+            play(py, &grasp, seed, progress, None, |source, report| {
                 job.resume(source, Box::new(GoodEncoder), report)
             })
         }

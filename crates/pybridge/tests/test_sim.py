@@ -133,7 +133,7 @@ def test_pick_place_and_packing_recognise_and_place():
         lgdm.sim.packing(["spaceship"], rounds=1)
 
 
-CLI_ONLY = {"resume", "help", "ae-checkpoint", "encoder", "progress"}
+CLI_ONLY = {"resume", "help", "ae-checkpoint", "progress"}
 
 
 @pytest.mark.parametrize(
@@ -207,3 +207,26 @@ def test_a_pick_place_run_resumes_from_its_record(tmp_path: Path):
     (tmp_path / "a" / "results.json").unlink()
     resumed = lgdm.sim.resume(tmp_path / "a")
     assert without_wall(resumed) == without_wall(straight)
+
+
+def test_a_python_view_encoder_recognises_in_the_loop(tmp_path: Path):
+    views = []
+
+    def extent(points: np.ndarray, colors: np.ndarray | None) -> np.ndarray:
+        views.append((points.shape, None if colors is None else colors.dtype))
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        return np.concatenate([hi - lo, points.mean(axis=0)])
+
+    r = lgdm.sim.pick_place(attempts=4, seed=1, encoder=(extent, 6), out=tmp_path / "run")
+    assert views and views[0][0][1] == 3
+    assert r["summary"]["recognition_accuracy"] is not None
+    name = r["recognition"]["encoder"]
+    assert name.startswith("python:") and name.endswith(".extent"), name
+
+    def wrong_length(points, colors):
+        return [1.0, 2.0]
+
+    with pytest.raises(lgdm.LgdmError, match="2 values, not the 6"):
+        lgdm.sim.pick_place(attempts=2, seed=1, encoder=(wrong_length, 6))
+    with pytest.raises(lgdm.ConfigError, match="encoder"):
+        lgdm.sim.pick_place(attempts=2, encoder="fancy")

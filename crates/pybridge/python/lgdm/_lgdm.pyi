@@ -266,6 +266,7 @@ def sim_pick_place(
     model: str | None,
     replay: bool,
     learn_always: bool,
+    encoder: Any,
     confidence: float | None,
     targets: list[str] | None,
     arrive_after: int | None,

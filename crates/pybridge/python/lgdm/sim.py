@@ -50,11 +50,17 @@ from typing import Any, Literal
 
 from . import _lgdm
 
-__all__ = ["GraspSource", "Progress", "grasp", "packing", "pick_place", "resume"]
+__all__ = ["GraspSource", "Progress", "ViewEncoder", "grasp", "packing", "pick_place", "resume"]
 
 #: A grasp source: ``"analytic"``, ``"random"``, or a callable from the robot's crop to a list
 #: of grasps (see the module's docs).
 GraspSource = Literal["analytic", "random"] | Callable[[dict[str, Any]], list[dict[str, Any]]]
+
+#: A view encoder for recognition: ``"good"`` (GOOD, 675 values), or ``(callable, dim)``: the
+#: callable gets one view — its points ``(N, 3)`` float32 in metres in the camera's optical
+#: frame, and their colours ``(N, 3)`` uint8 or ``None`` — and returns ``dim`` numbers (or
+#: ``None`` for a view it cannot describe).
+ViewEncoder = Literal["good"] | tuple[Callable[[Any, Any], Any], int]
 
 #: A progress callback: ``(stage, done, total)``, e.g. ``("rounds", 3, 10)``.
 Progress = Callable[[str, int, int], object]
@@ -134,6 +140,7 @@ def pick_place(
     model: Path | None = None,
     replay: bool = True,
     learn_always: bool = False,
+    encoder: ViewEncoder = "good",
     confidence: float = 0.6,
     arrive_after: int | None = None,
     config: Path | None = None,
@@ -151,7 +158,8 @@ def pick_place(
     basket.
 
     The options are the command line's (``lgdm sim pick-place --help``); ``replay=False`` is
-    ``--no-replay``. ``rounds`` defaults to as many as ``attempts`` when that is given, else
+    ``--no-replay``; ``encoder`` is ``"good"`` or your own feature, ``(callable, dim)``
+    (:data:`ViewEncoder`). ``rounds`` defaults to as many as ``attempts`` when that is given, else
     10. Returns the results as ``results.json`` holds them; ``out`` also writes the run
     directory with the learnt ``model.lgdm``.
     """
@@ -169,6 +177,7 @@ def pick_place(
         model=model,
         replay=replay,
         learn_always=learn_always,
+        encoder=encoder,
         confidence=confidence,
         arrive_after=arrive_after,
         config=config,
@@ -198,6 +207,7 @@ def packing(
     model: Path | None = None,
     replay: bool = True,
     learn_always: bool = False,
+    encoder: ViewEncoder = "good",
     confidence: float = 0.6,
     arrive_after: int | None = None,
     config: Path | None = None,
@@ -230,6 +240,7 @@ def packing(
         model=model,
         replay=replay,
         learn_always=learn_always,
+        encoder=encoder,
         confidence=confidence,
         arrive_after=arrive_after,
         config=config,
@@ -274,6 +285,7 @@ def _recognition_run(
     model: Path | None,
     replay: bool,
     learn_always: bool,
+    encoder: ViewEncoder,
     confidence: float,
     arrive_after: int | None,
     config: Path | None,
@@ -299,6 +311,7 @@ def _recognition_run(
         model=_path(model),
         replay=replay,
         learn_always=learn_always,
+        encoder=encoder,
         confidence=confidence,
         targets=targets,
         arrive_after=arrive_after,
