@@ -40,7 +40,8 @@ cargo run --release -q -p lgdm-sim --example pick_place_round > /dev/null
 step "python: build and install the lgdm module (maturin)"
 (
   export VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH"
-  maturin develop --release -q -m crates/pybridge/Cargo.toml
+  # -E ray: the sweeps' optional extra (Ray, matplotlib), so the sweep tests run.
+  maturin develop --release -q -E ray -m crates/pybridge/Cargo.toml
 )
 
 step "python: lint, tests"

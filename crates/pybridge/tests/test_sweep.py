@@ -1,0 +1,144 @@
+"""``lgdm.sweep``: a grid of robot runs on Ray — every cell the run it would be alone, failures
+reported while the rest finish, finished cells kept on ``--resume``."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_sim import without_wall
+
+import lgdm
+import lgdm.sim
+import lgdm.sweep
+
+pytest.importorskip("ray", reason='sweeps need the ray extra: pip install "lgdm[ray]"')
+
+REPO = Path(__file__).resolve().parents[3]
+SMALL = REPO / "examples" / "sweeps" / "small.toml"
+
+
+def table(path: Path) -> list[dict[str, str]]:
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The small example sweep, with one more grid value that fails (an unknown gripper), run
+    through the command line."""
+    spec = tmp_path_factory.mktemp("spec") / "spec.toml"
+    spec.write_text(
+        SMALL.read_text().replace(
+            'grasp = ["analytic", "random"]',
+            'grasp = ["analytic", "random"]\ngripper = ["2f-140", "2f-300"]',
+        )
+    )
+    out = tmp_path_factory.mktemp("sweep")
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 1, done.stderr  # cells failed, and it says so
+    assert "2f-300" in done.stderr
+    return out
+
+
+def test_each_cell_is_the_run_done_alone(swept: Path, tmp_path: Path):
+    rows = table(swept / "table.csv")
+    assert len(rows) == 8  # 2 grasp sources × 2 grippers × 2 seeds
+    ok = [r for r in rows if r["status"] == "ok"]
+    assert {(r["grasp"], r["seed"]) for r in ok} == {
+        (g, s) for g in ("analytic", "random") for s in ("0", "1")
+    }
+    alone = lgdm.sim.grasp(
+        scenario="isolated", rounds=4, grasp="random", gripper="2f-140", seed=1, out=tmp_path / "r"
+    )
+    cell = swept / "cells" / "grasp=random,gripper=2f-140,seed=1" / "results.json"
+    assert without_wall(json.loads(cell.read_text())) == without_wall(alone)
+    row = next(r for r in ok if r["cell"] == "grasp=random,gripper=2f-140,seed=1")
+    assert float(row["grasp_success_rate"]) == alone["summary"]["grasp_success_rate"]["value"]
+
+
+def test_a_failing_cell_is_reported_and_the_rest_finish(swept: Path):
+    rows = table(swept / "table.csv")
+    failed = [r for r in rows if r["status"] != "ok"]
+    assert {r["gripper"] for r in failed} == {"2f-300"} and len(failed) == 4
+    assert all("ConfigError" in r["status"] and "2f-300" in r["status"] for r in failed)
+    summary = table(swept / "summary.csv")
+    settings = {s["setting"] for s in summary}
+    assert settings == {"grasp=analytic,gripper=2f-140", "grasp=random,gripper=2f-140"}
+    assert all(s["seeds"] == "2" for s in summary)
+    assert (swept / "summary.png").is_file()
+
+
+def test_resume_runs_nothing_that_finished(swept: Path):
+    before = {p: p.stat().st_mtime_ns for p in swept.glob("cells/*/results.json")}
+    assert len(before) == 4
+    ran = []
+    rows = lgdm.sweep.run(
+        json.loads((swept / "spec.json").read_text()),
+        out=swept,
+        resume=True,
+        progress=lambda done, total: ran.append(done),
+    )
+    after = {p: p.stat().st_mtime_ns for p in swept.glob("cells/*/results.json")}
+    assert after == before
+    assert len(rows) == 8 and ran  # only the 4 failing cells were tried again
+
+
+@pytest.mark.parametrize(
+    "spec, field",
+    [
+        ({"sweep": {"command": "sim juggle", "seeds": [0]}}, "sweep.command"),
+        ({"sweep": {"command": "sim grasp", "seeds": []}}, "sweep.seeds"),
+        ({"sweep": {"command": "sim grasp", "seeds": [0]}, "grid": {"speed": [1]}}, "speed"),
+        ({"sweep": {"command": "sim grasp", "seeds": [0]}, "base": {"seed": 3}}, "seed"),
+    ],
+)
+def test_bad_specs_are_config_errors_naming_the_field(spec: dict, field: str, tmp_path: Path):
+    with pytest.raises(lgdm.ConfigError, match=field):
+        lgdm.sweep.run(spec, out=tmp_path)
+    assert not (tmp_path / "cells").exists()
+
+
+@pytest.fixture
+def two_node_cluster(monkeypatch: pytest.MonkeyPatch):
+    """A Ray cluster of two nodes on this machine (one CPU each), as the README describes it."""
+    import shutil
+    import socket
+
+    ray_cli = shutil.which("ray") or str(Path(sys.executable).with_name("ray"))
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"127.0.0.1:{port}"
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
+    env = {**__import__("os").environ, "RAY_AUTH_MODE": "disabled"}
+    common = ["--num-cpus=1", "--disable-usage-stats"]
+    try:
+        for args in (
+            ["--head", f"--port={port}", "--include-dashboard=false"],
+            [f"--address={address}"],
+        ):
+            subprocess.run([ray_cli, "start", *args, *common], env=env, check=True,
+                           capture_output=True)  # fmt: skip
+        yield address
+    finally:
+        subprocess.run([ray_cli, "stop"], env=env, capture_output=True, check=False)
+
+
+def test_a_two_node_cluster_gives_the_local_table(two_node_cluster: str, tmp_path: Path):
+    local = tmp_path / "local"
+    cluster = tmp_path / "cluster"
+    lgdm.sweep.run(SMALL, out=local)
+    lgdm.sweep.run(SMALL, out=cluster, address=two_node_cluster)
+    assert (cluster / "table.csv").read_text() == (local / "table.csv").read_text()
+    nodes = json.loads((cluster / "nodes.json").read_text())
+    assert len(nodes) == 4 and len(set(nodes.values())) == 2, nodes
