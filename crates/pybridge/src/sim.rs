@@ -27,7 +27,7 @@ use lgdm_sim::results::RunResults;
 use lgdm_sim::scenario::Scenario;
 use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
-use lgdm_sim::spec::{SimError, builtin_source};
+use lgdm_sim::spec::{SimError, StopToken, builtin_source};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -323,17 +323,33 @@ impl Source {
 struct Reporter {
     callback: Option<Py<PyAny>>,
     error: Option<PyErr>,
+    /// Ctrl-C (or another signal's exception) seen at a progress report: the run is asked to
+    /// stop after its round and the exception raised when it has.
+    interrupt: Option<PyErr>,
+    stop: StopToken,
 }
 
 impl Reporter {
     fn report(&mut self, p: Progress) {
-        let Some(cb) = &self.callback else { return };
-        if self.error.is_some() {
-            return;
-        }
-        if let Err(e) = Python::attach(|py| cb.call1(py, (p.stage, p.done, p.total)).map(|_| ())) {
-            self.error = Some(e);
-        }
+        Python::attach(|py| {
+            if self.interrupt.is_none()
+                && let Err(e) = py.check_signals()
+            {
+                self.interrupt = Some(e);
+                self.stop.stop();
+            }
+            let Some(cb) = &self.callback else { return };
+            if self.error.is_none()
+                && let Err(e) = cb.call1(py, (p.stage, p.done, p.total))
+            {
+                if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+                    self.interrupt.get_or_insert(e);
+                    self.stop.stop();
+                } else {
+                    self.error = Some(e);
+                }
+            }
+        });
     }
 }
 
@@ -429,6 +445,7 @@ fn play(
     grasp: &Bound<'_, PyAny>,
     seed: u64,
     progress: Option<Py<PyAny>>,
+    stop: StopToken,
     encoder_error: Option<std::sync::Arc<std::sync::Mutex<Option<PyErr>>>>,
     play: impl FnOnce(&mut dyn GraspSource, &mut dyn FnMut(Progress)) -> Result<RunResults, SimError>
     + Send,
@@ -437,6 +454,8 @@ fn play(
     let mut reporter = Reporter {
         callback: progress,
         error: None,
+        interrupt: None,
+        stop,
     };
     let (result, source) = py.detach(|| {
         let mut report = |p: Progress| reporter.report(p);
@@ -456,6 +475,18 @@ fn play(
         );
         err.set_cause(py, Some(e));
         return Err(err);
+    }
+    if let Some(e) = reporter.interrupt {
+        // The run stopped after a checkpointed round: `lgdm.sim.resume` plays the rest.
+        return Err(e);
+    }
+    if let Source::Callable(c) = &source
+        && let Some(e) = &c.error
+        && e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py)
+    {
+        // Ctrl-C arrived while the callable ran: the run stopped there, its finished rounds
+        // checkpointed.
+        return Err(e.clone_ref(py));
     }
     if let Source::Callable(c) = source
         && let Some(e) = c.error
@@ -514,9 +545,15 @@ pub fn sim_grasp(
         ae_checkpoint: None,
     };
     let job = py.detach(|| GraspJob::prepare(setup)).map_err(sim_error)?;
-    play(py, grasp, seed, progress, None, |source, report| {
-        job.run(source, report)
-    })
+    play(
+        py,
+        grasp,
+        seed,
+        progress,
+        job.stop_token(),
+        None,
+        |source, report| job.run(source, report),
+    )
 }
 
 /// `lgdm sim pick-place` (no `targets`) and `lgdm sim packing`: returns results.json's text.
@@ -613,11 +650,13 @@ pub fn sim_pick_place(
     let job = py
         .detach(|| PickPlaceJob::prepare(setup))
         .map_err(sim_error)?;
+    let stop = job.stop_token();
     play(
         py,
         grasp,
         seed,
         progress,
+        stop,
         encoder_error,
         |source, report| job.run(source, encoder, report),
     )
@@ -656,9 +695,15 @@ pub fn sim_resume(
             setup.out = Some(Output::new(&run_dir));
             let seed = setup.seed;
             let job = py.detach(|| GraspJob::prepare(*setup)).map_err(sim_error)?;
-            play(py, &grasp, seed, progress, None, |source, report| {
-                job.resume(source, report)
-            })
+            play(
+                py,
+                &grasp,
+                seed,
+                progress,
+                job.stop_token(),
+                None,
+                |source, report| job.resume(source, report),
+            )
         }
         JobKind::PickPlace(mut setup) => {
             if setup.encoder.0 != GoodEncoder.name() {
@@ -677,9 +722,15 @@ pub fn sim_resume(
             let job = py
                 .detach(|| PickPlaceJob::prepare(*setup))
                 .map_err(sim_error)?;
-            play(py, &grasp, seed, progress, None, |source, report| {
-                job.resume(source, Box::new(GoodEncoder), report)
-            })
+            play(
+                py,
+                &grasp,
+                seed,
+                progress,
+                job.stop_token(),
+                None,
+                |source, report| job.resume(source, Box::new(GoodEncoder), report),
+            )
         }
     }
 }

@@ -230,3 +230,45 @@ def test_a_python_view_encoder_recognises_in_the_loop(tmp_path: Path):
         lgdm.sim.pick_place(attempts=2, seed=1, encoder=(wrong_length, 6))
     with pytest.raises(lgdm.ConfigError, match="encoder"):
         lgdm.sim.pick_place(attempts=2, encoder="fancy")
+
+
+def test_ctrl_c_stops_a_run_with_whole_rounds_written_and_it_resumes(tmp_path: Path):
+    """Ctrl-C (here ``_thread.interrupt_main`` from the source, as a signal would arrive) stops
+    the run; its directory holds whole rounds, and resuming gives the results of the run never
+    stopped."""
+    import _thread
+
+    def make(interrupt_at: int | None):
+        calls = []
+
+        def source(crop: dict) -> list:
+            calls.append(1)
+            if len(calls) == interrupt_at:
+                _thread.interrupt_main()
+            return []
+
+        return source
+
+    straight = lgdm.sim.grasp(grasp=make(None), rounds=4, seed=6, out=tmp_path / "a")
+    with pytest.raises(KeyboardInterrupt):
+        lgdm.sim.grasp(grasp=make(5), rounds=4, seed=6, out=tmp_path / "b")
+    assert not (tmp_path / "b" / "results.json").exists()
+    resumed = lgdm.sim.resume(tmp_path / "b", grasp=make(None))
+    assert without_wall(resumed) == without_wall(straight)
+
+
+def test_ctrl_c_while_rust_works_stops_after_the_round(tmp_path: Path):
+    """A Ctrl-C arriving while the analytic source and the physics run (the GIL released) stops
+    the run after its round, checkpointed; resuming finishes it as if never stopped."""
+    import _thread
+    import threading
+
+    straight = lgdm.sim.grasp(rounds=5, seed=8, out=tmp_path / "a")
+    threading.Timer(0.05, _thread.interrupt_main).start()
+    with pytest.raises(KeyboardInterrupt):
+        lgdm.sim.grasp(rounds=5, seed=8, out=tmp_path / "b")
+    progress = json.loads((tmp_path / "b" / "progress.json").read_text())
+    assert 1 <= progress["state"]["rounds_done"] < 5
+    assert not (tmp_path / "b" / "results.json").exists()
+    resumed = lgdm.sim.resume(tmp_path / "b")
+    assert without_wall(resumed) == without_wall(straight)

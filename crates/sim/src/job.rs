@@ -53,7 +53,7 @@ use crate::runner::{RunState, play, prepare_shapes};
 use crate::scenario::{Scenario, interleaved_order};
 use crate::shapes::LibraryShapes;
 use crate::source::GraspSource;
-use crate::spec::{RunSpec, SimError};
+use crate::spec::{RunSpec, SimError, StopToken};
 
 /// Where a job's objects come from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -215,6 +215,7 @@ impl Default for GraspSetup {
 #[derive(Debug)]
 pub struct GraspJob {
     setup: GraspSetup,
+    stop: StopToken,
     spec: RunSpec,
     library: ObjectLibrary,
     shapes: LibraryShapes,
@@ -244,6 +245,7 @@ impl GraspJob {
         let shapes = prepare_shapes(&spec, &library.objects, None)?;
         Ok(GraspJob {
             setup: kept,
+            stop: StopToken::default(),
             spec,
             library,
             shapes,
@@ -260,6 +262,11 @@ impl GraspJob {
     /// Its objects.
     pub fn library(&self) -> &ObjectLibrary {
         &self.library
+    }
+
+    /// Stops the run after its current round ([`StopToken`]).
+    pub fn stop_token(&self) -> StopToken {
+        self.stop.clone()
     }
 
     /// Plays the run with `source` and writes the run directory (when the setup has one): the
@@ -302,8 +309,15 @@ impl GraspJob {
     ) -> Result<RunResults, SimError> {
         let spec = &self.spec;
         let saver = dir.as_ref().map(SimRunDir::checkpointer);
+        let stop = &self.stop;
         let checkpoint = &mut |s: &RunState, r: Option<&Recognizer>| {
-            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))
+            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))?;
+            if stop.is_stopped() {
+                return Err(SimError::Stopped {
+                    rounds_done: s.rounds_done,
+                });
+            }
+            Ok(())
         };
         let cameras = &spec.config.cameras;
         let library = &self.library.objects;
@@ -476,6 +490,7 @@ impl Default for PickPlaceSetup {
 #[derive(Debug)]
 pub struct PickPlaceJob {
     setup: PickPlaceSetup,
+    stop: StopToken,
     spec: RunSpec,
     library: ObjectLibrary,
     shapes: LibraryShapes,
@@ -623,6 +638,7 @@ impl PickPlaceJob {
         let shapes = prepare_shapes(&spec, &set, Some(&labels))?;
         Ok(PickPlaceJob {
             setup: kept,
+            stop: StopToken::default(),
             spec,
             library,
             shapes,
@@ -650,6 +666,11 @@ impl PickPlaceJob {
     /// The object set.
     pub fn set(&self) -> &[ObjectModel] {
         &self.set
+    }
+
+    /// Stops the run after its current round ([`StopToken`]).
+    pub fn stop_token(&self) -> StopToken {
+        self.stop.clone()
     }
 
     /// What the user should know about the setup (a model without a record beside it, a set
@@ -756,8 +777,15 @@ impl PickPlaceJob {
         };
         let (spec, set) = (&self.spec, &self.set);
         let saver = dir.as_ref().map(SimRunDir::checkpointer);
+        let stop = &self.stop;
         let checkpoint = &mut |s: &RunState, r: Option<&Recognizer>| {
-            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))
+            saver.as_ref().map_or(Ok(()), |c| c.save(s, r))?;
+            if stop.is_stopped() {
+                return Err(SimError::Stopped {
+                    rounds_done: s.rounds_done,
+                });
+            }
+            Ok(())
         };
         let cameras = &spec.config.cameras;
         let shapes = Some(self.shapes);

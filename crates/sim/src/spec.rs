@@ -214,6 +214,13 @@ pub enum SimError {
     /// An observer of the run failed (recording: a [`crate::record::RecordError`]).
     #[error(transparent)]
     Observer(ObserverError),
+    /// The run was asked to stop ([`StopToken`]); its run directory holds the rounds it
+    /// finished, and `resume` plays the rest.
+    #[error("stopped after {rounds_done} finished round(s)")]
+    Stopped {
+        /// Rounds finished and checkpointed.
+        rounds_done: usize,
+    },
     /// The run directory cannot be used or written.
     #[error("run directory {}: {reason}", path.display())]
     RunDir {
@@ -236,5 +243,23 @@ pub fn builtin_source(name: &str, seed: u64) -> Result<Box<dyn GraspSource>, Sim
             0,
         )))),
         other => Err(SimError::UnknownSource(other.to_string())),
+    }
+}
+
+/// Asks a running job to stop: it finishes the round it is playing, writes that round's
+/// checkpoint and returns [`SimError::Stopped`] — nothing half-written, and `resume` plays the
+/// rest. Clones share the request (a signal handler or another thread holds one).
+#[derive(Debug, Clone, Default)]
+pub struct StopToken(std::sync::Arc<std::sync::atomic::AtomicBool>);
+
+impl StopToken {
+    /// Asks the job to stop after its current round.
+    pub fn stop(&self) {
+        self.0.store(true, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Whether a stop was asked for.
+    pub fn is_stopped(&self) -> bool {
+        self.0.load(std::sync::atomic::Ordering::SeqCst)
     }
 }
