@@ -75,6 +75,11 @@ pub struct AttemptConfig {
     /// Fingertips stay this far above the highest surface the depth image shows in the open
     /// fingers' lanes (m; default 0.003).
     pub lane_clearance_m: f64,
+    /// A grasp is tried only when the fingertips reach at least this far below the highest
+    /// surface on each pad's half of the closing line (m; default 0.002): a plan whose tips the
+    /// clearances above raised over what lies between the pads would close on air
+    /// ([`GraspPlan::reaches_contacts`]).
+    pub pad_overlap_m: f64,
     /// The palm's underside stays this far above the highest surface under it (m; default
     /// 0.005).
     pub palm_clearance_m: f64,
@@ -159,6 +164,7 @@ impl Default for AttemptConfig {
             grasp_depth_m: 0.04,
             min_tip_height_m: 0.005,
             lane_clearance_m: 0.003,
+            pad_overlap_m: 0.002,
             palm_clearance_m: 0.005,
             close_timeout_s: 2.0,
             squeeze_s: 0.2,
@@ -241,6 +247,7 @@ impl AttemptConfig {
             ("grasp_depth_m", self.grasp_depth_m),
             ("min_tip_height_m", self.min_tip_height_m),
             ("lane_clearance_m", self.lane_clearance_m),
+            ("pad_overlap_m", self.pad_overlap_m),
             ("palm_clearance_m", self.palm_clearance_m),
             ("squeeze_s", self.squeeze_s),
             ("hold_s", self.hold_s),
@@ -449,6 +456,23 @@ pub struct GraspPlan {
     pub lane_height_m: f64,
     /// Highest surface under the palm above the table (m).
     pub palm_height_m: f64,
+    /// Fingertip height above the table at the grasp (m).
+    pub tip_height_m: f64,
+    /// The lower of the two pads' highest surfaces above the table on their halves of the
+    /// closing line, between the open pads and 2 mm to either side of the pads' width (m; from
+    /// the depth image): what the pads can meet as they close.
+    pub contact_height_m: f64,
+}
+
+impl GraspPlan {
+    /// Whether both pads, as planned, close on something: the fingertips are at least
+    /// [`AttemptConfig::pad_overlap_m`] below the highest surface on each pad's half of the
+    /// closing line. The clearances that keep the fingers off a neighbour in their lanes or the
+    /// palm off whatever is under it can raise the tips above the object between them (a pile,
+    /// a low object beside a tall one); such a plan would close on air.
+    pub fn reaches_contacts(&self, config: &AttemptConfig) -> bool {
+        self.tip_height_m + config.pad_overlap_m <= self.contact_height_m
+    }
 }
 
 /// Plans the tool targets of `grasp` seen in `view`: the commanded opening, the fingertip height
@@ -478,6 +502,8 @@ pub fn plan_grasp(
     let centre = transform_point(&camera_from_world, grasp.position_m.map(|v| v as f32));
     let reach_m = (palm_half_len.max(0.5 * opening + thickness) + 0.01).hypot(palm_half_width);
     let (mut lane, mut palm, mut tallest) = (0.0f64, 0.0f64, 0.0f64);
+    // Highest surface on each pad's half of the closing line (a < 0, a > 0).
+    let mut halves = [0.0f64; 2];
     let depth = &view.shot.frame.depth_m;
     let (w, h) = (k.width as i64, k.height as i64);
     for d in depth.iter().filter(|d| d.is_finite() && **d > 0.0) {
@@ -503,6 +529,10 @@ pub fn plan_grasp(
                 {
                     lane = lane.max(height);
                 }
+                if a.abs() < 0.5 * opening && b.abs() <= half_width + 0.002 {
+                    let half = &mut halves[usize::from(a > 0.0)];
+                    *half = half.max(height);
+                }
                 if a.abs() <= palm_half_len && b.abs() <= palm_half_width {
                     palm = palm.max(height);
                 }
@@ -526,6 +556,8 @@ pub fn plan_grasp(
         opening_m: opening,
         lane_height_m: lane,
         palm_height_m: palm,
+        tip_height_m: tip,
+        contact_height_m: halves[0].min(halves[1]),
     }
 }
 

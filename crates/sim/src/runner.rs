@@ -359,7 +359,8 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         Ok(views?)
     }
 
-    /// The source's ranked grasps on `view` that can be placed in the world.
+    /// The source's ranked grasps on `view` that can be placed in the world (not yet checked
+    /// against the plan: [`Runner::reaches`]).
     fn candidates(
         &mut self,
         view: &ObjectView,
@@ -409,6 +410,22 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
                 })
                 .collect()
         }))
+    }
+
+    /// Whether `candidate`'s pads, as planned in `cell`, close on something
+    /// ([`crate::attempt::GraspPlan::reaches_contacts`]): a plan that would close on air is
+    /// never tried.
+    fn reaches(
+        &self,
+        cell: &Cell,
+        view: &ObjectView,
+        candidate: &Candidate,
+        clock: &mut AttemptClock,
+    ) -> bool {
+        let attempt = &self.spec.config.attempt;
+        clock.wall.time(Work::Planning, || {
+            plan_grasp(cell, view, &candidate.world, attempt).reaches_contacts(attempt)
+        })
     }
 
     /// Adds the record of an attempt at `target` (the object aimed at) that tried `grasp`.
@@ -698,7 +715,11 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             );
             return Ok(RoundEnd::NothingSeen);
         };
-        let candidates = self.candidates(&view, 0, &mut clock)?;
+        let candidates: Vec<Candidate> = self
+            .candidates(&view, 0, &mut clock)?
+            .into_iter()
+            .filter(|c| self.reaches(cell, &view, c, &mut clock))
+            .collect();
         let aimed = view.object.or(Some(object.handle));
         if candidates.is_empty() {
             let exec = self.no_grasp_at(&cell.world, aimed);
@@ -800,9 +821,21 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             let (views, candidates) = self.survey(cell, &mut clock)?;
             tries += 1;
             let at = (round, tries - 1);
-            let Some(candidate) =
-                candidates.get(consecutive.min(candidates.len().saturating_sub(1)))
-            else {
+            // The `consecutive`-th of the candidates whose pads close on something (after as
+            // many failures in a row), else the last of them: planned best first, only as far
+            // as needed.
+            let mut chosen = None;
+            let mut reaching = 0;
+            for c in &candidates {
+                if self.reaches(cell, &views[c.view], c, &mut clock) {
+                    chosen = Some(c);
+                    if reaching == consecutive {
+                        break;
+                    }
+                    reaching += 1;
+                }
+            }
+            let Some(candidate) = chosen else {
                 // Attributed to the largest segment's object, which the attempt would have
                 // aimed at first.
                 let aimed = views.first().and_then(|v| v.object);

@@ -1,7 +1,7 @@
 //! Grasp attempts end to end in the library: the analytic source grasps simple objects (cans,
 //! bottles, books, boxes, apples) in the isolated scenario at ≥ 60 % over ≥ 20 attempts and the
 //! random baseline does strictly worse; a placed object ends at rest inside the basket; closing
-//! on an empty spot is a miss; packed and pile tables hold five objects; same seed → the same
+//! on an empty spot is a miss; a plan whose pads would close on air is refused; packed and pile tables hold five objects; same seed → the same
 //! results bit for bit (wall-clock fields aside), another seed → other results.
 //!
 //! Run in release (`cargo test -p lgdm-sim --release --test attempts`): physics in a debug build
@@ -84,6 +84,53 @@ fn analytic_grasps_simple_objects_and_beats_random() {
     }
 }
 
+/// A plan whose pads would close on air is refused before it is tried: the can's grasp reaches
+/// its contacts; the same grasp with the fingertips lifted over the can (a lane clearance as a
+/// tall neighbour would force) does not, nor does one on the bare table beside it.
+#[test]
+fn plans_that_close_on_air_are_refused() {
+    let mut world = World::new(WorldConfig::default()).unwrap();
+    let top = world.config().table.top_z_m();
+    let can = procedural_object("can", 0, 2).unwrap();
+    world
+        .spawn_object("can", &can, &translation([0.08, -0.55, top]))
+        .unwrap();
+    world.settle();
+    let cell = Cell::new(world, RobotConfig::default()).unwrap();
+    let perception = Perception::new(Default::default()).unwrap();
+    let scene = perception.look(&cell.world).unwrap();
+    let view = perception.close_up(&cell.world, &scene, 0).unwrap();
+    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    let query = GraspQuery {
+        crop: &view.crop,
+        intrinsics: &view.shot.camera.intrinsics,
+        gripper: &gripper,
+    };
+    let grasps = AnalyticSource::new().grasps(&query, 1).unwrap();
+    let config = AttemptConfig::default();
+    let grasp = view.grasp_in_world(&grasps[0], &config.decode).unwrap();
+    let plan = plan_grasp(&cell, &view, &grasp, &config);
+    assert!(plan.reaches_contacts(&config), "{plan:?}");
+    assert!(plan.contact_height_m > 0.05, "{plan:?}");
+    let lifted = AttemptConfig {
+        lane_clearance_m: plan.contact_height_m + 0.01,
+        ..config.clone()
+    };
+    let high = plan_grasp(&cell, &view, &grasp, &lifted);
+    assert!(high.tip_height_m > plan.contact_height_m, "{high:?}");
+    assert!(!high.reaches_contacts(&lifted), "{high:?}");
+    let beside = WorldGrasp {
+        position_m: [
+            grasp.position_m[0] - 0.2,
+            grasp.position_m[1],
+            f64::from(top),
+        ],
+        ..grasp
+    };
+    let bare = plan_grasp(&cell, &view, &beside, &config);
+    assert!(!bare.reaches_contacts(&config), "{bare:?}");
+}
+
 /// One attempt through the library's parts: a can on the table, seen, grasped analytically,
 /// carried and released; it ends at rest in the basket, off the table — in the left basket
 /// (basket 0, x = +0.7 m, where pick-and-place puts everything) and in the right one (basket 1,
@@ -126,6 +173,7 @@ fn place_a_can_in(basket: usize) {
     let d = (grasp.position_m[0] - 0.08).hypot(grasp.position_m[1] + 0.55);
     assert!(d < 0.04, "grasp {d} m from the can's axis");
     let plan = plan_grasp(&cell, &view, &grasp, &config);
+    assert!(plan.reaches_contacts(&config), "{plan:?}");
     let stroke = f64::from(cell.robot.gripper().config().stroke_m);
     assert!(plan.opening_m <= stroke + 1e-9 && plan.opening_m > grasp.opening_m);
     let mut wall = WallTimes::default();
@@ -178,6 +226,8 @@ fn closing_on_an_empty_spot_is_missed() {
         opening_m: 0.07,
         lane_height_m: 0.0,
         palm_height_m: 0.0,
+        tip_height_m: 0.0,
+        contact_height_m: 0.0,
     };
     let config = AttemptConfig::default();
     let exec = execute(
