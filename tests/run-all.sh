@@ -5,7 +5,8 @@
 # Order: lint; the venv with the Python test tools (numpy, maturin, pytest, ruff) before the Rust
 # tests, which use its numpy (crates/pointcloud/tests/features_npz.rs loads a written .npz; it
 # fails without numpy, it never skips); the Rust tests; the `lgdm` module and its pytest; torch
-# and train_ae (~3 GB on first use) last, then the Rust ↔ torch bridge tests.
+# and train_ae (~3 GB on first use) last, then the Rust ↔ torch bridge tests and the network as
+# a Python grasp callable against the `ae` binary (examples/python).
 #
 # Environment:
 #   LGDM_VENV      the Python venv to create or reuse (default: ~/.cache/lgdm/venv, outside the clone);
@@ -45,7 +46,7 @@ step "python: build and install the lgdm module (maturin)"
 )
 
 step "python: lint, tests"
-"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python
+"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python examples
 # -rs: say why a test was skipped (test_cli.py needs the release `lgdm` binary built above).
 "$venv/bin/python" -m pytest -q -rs crates/pybridge/tests
 
@@ -59,3 +60,10 @@ LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q -rs py
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --lib --test ae_bridge
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-cli --features ae --test e2e_ae
+
+step "a grasp network as a Python callable (examples/python): the grasps and counts of --grasp network"
+# The ae build of the binary (e2e_ae above built it already; this is then a no-op). torch's sums,
+# and so the grasps, depend on its thread count: one thread on both sides.
+VIRTUAL_ENV="$venv" cargo build --release -q -p lgdm-cli --features ae
+VIRTUAL_ENV="$venv" OMP_NUM_THREADS=1 LGDM_AE_BIN="$CARGO_TARGET_DIR/release/lgdm" \
+  "$venv/bin/python" -m pytest -q -rs examples/python

@@ -4,7 +4,7 @@
 //! data; the same seed twice gives the same results (wall-clock fields aside), also when the
 //! second run is recorded (`--record`: an MCAP and a storyboard per round in `rounds/`); on fixed
 //! seeds the analytic grasps clear success floors on isolated objects and on each cluttered
-//! table, and random grasps do clearly worse than analytic ones on the same rounds; bad input
+//! table, and random grasps do worse than analytic ones on the same rounds; bad input
 //! (`--rounds 0`, an unknown scenario, a mesh whose hull cannot be built, an object larger than
 //! the table, a foreign `--out`) fails with a message naming the problem and writes nothing.
 //!
@@ -254,13 +254,15 @@ fn another_seed_gives_other_results() {
 }
 
 /// Analytic grasps on isolated objects clear a floor, and random grasps on the same rounds
-/// (same seed: same objects, same poses) do clearly worse.
+/// (same seed: same objects, same poses) do worse.
 ///
 /// Measured on this 2-core machine (release build) with
 /// `lgdm sim grasp --scenario isolated --rounds 10 --seed 0 --grasp analytic|random`:
-/// analytic 10/10 grasped, 9/10 placed (one slipped during the carry); random 1/30 grasped
-/// and placed, 1/10 objects cleared. The floors below leave a wide margin under those: they
-/// guard against regressions, they are not tuned to the measurement.
+/// analytic 10/10 grasped and placed; random 6/10 grasped, placed and cleared — since the
+/// planner drops grasps whose pads would close on air (issue 23) for every source, a random
+/// draw that would is never tried (before: 1/30), and an object none of whose three draws can
+/// close on anything ends its round as "no grasp found". The floors below leave a margin under
+/// those: they guard against regressions, they are not tuned to the measurement.
 #[test]
 fn isolated_analytic_grasps_clear_a_floor_and_beat_random() {
     let dir = work_dir();
@@ -287,7 +289,7 @@ fn isolated_analytic_grasps_clear_a_floor_and_beat_random() {
     );
     assert!(
         placed >= 6 && cleared >= 6,
-        "analytic placed {placed}, cleared {cleared}/10: below the floor 6 (measured 9)"
+        "analytic placed {placed}, cleared {cleared}/10: below the floor 6 (measured 10)"
     );
 
     let random = run("random");
@@ -295,16 +297,16 @@ fn isolated_analytic_grasps_clear_a_floor_and_beat_random() {
     let (r_grasped, r_tried, r_rate) = rate_counts(&r["grasp_success_rate"]);
     let (r_cleared, _, _) = rate_counts(&r["cleared_fraction"]);
     assert!(
-        r_rate + 0.4 <= grasp_rate,
+        r_rate + 0.2 <= grasp_rate,
         "random grasps {r_grasped}/{r_tried} are not clearly worse than analytic ones \
-         {grasped}/{tried} (measured 1/30 against 10/10)"
+         {grasped}/{tried} (measured 6/10 against 10/10)"
     );
     assert!(
-        r_cleared + 4 <= cleared,
-        "random cleared {r_cleared}/10, analytic {cleared}/10 (measured 1 against 9)"
+        r_cleared + 2 <= cleared,
+        "random cleared {r_cleared}/10, analytic {cleared}/10 (measured 6 against 10)"
     );
     // Random tries up to three grasps per object before giving up on it.
-    assert!(r_tried > 10 && r_tried <= 30, "{r}");
+    assert!((10..=30).contains(&r_tried), "{r}");
 }
 
 /// Analytic grasps place something on each cluttered table.
@@ -504,4 +506,63 @@ fn a_runs_sim_toml_reproduces_it_and_bad_configs_name_the_field() {
         &["--config", "inside --out"],
     );
     assert_eq!(std::fs::read_to_string(&own).unwrap(), text);
+}
+
+/// Ctrl-C (SIGINT) stops a run after the round it is playing: the process exits with 130 and
+/// says how to resume, the run directory holds whole rounds, and `--resume` ends it as a run
+/// never stopped (results without wall times). If the signal lands after the last round, the run
+/// simply finished.
+#[test]
+fn ctrl_c_stops_after_a_round_and_resume_finishes_the_run() {
+    let root = work_dir().join("ctrl-c");
+    let _ = std::fs::remove_dir_all(&root);
+    let (straight, stopped) = (root.join("straight"), root.join("stopped"));
+    let args = ["--rounds", "8", "--seed", "2"];
+    check(sim(&straight, &args), "straight");
+    let child = lgdm(&work_dir().join("cache"))
+        .args(["sim", "grasp", "--progress", "none"])
+        .args(args)
+        .arg("--out")
+        .arg(&stopped)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    while !stopped.join("progress.json").is_file() && !stopped.join("results.json").is_file() {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    if out.status.success() {
+        // The signal came after the last round: nothing was stopped.
+        assert!(stopped.join("results.json").is_file(), "{err}");
+    } else {
+        assert_eq!(out.status.code(), Some(130), "{err}");
+        assert!(
+            err.contains("stopped by Ctrl-C after") && err.contains("--resume"),
+            "{err}"
+        );
+        assert!(!stopped.join("results.json").exists());
+        let progress: Value =
+            serde_json::from_slice(&std::fs::read(stopped.join("progress.json")).unwrap()).unwrap();
+        assert!(
+            progress["state"]["rounds_done"].as_u64().unwrap() >= 1,
+            "{progress}"
+        );
+        let resumed = lgdm(&work_dir().join("cache"))
+            .args(["sim", "grasp", "--progress", "none", "--resume"])
+            .arg(&stopped)
+            .output()
+            .unwrap();
+        check(resumed, "grasp --resume");
+    }
+    assert_eq!(
+        without_wall(&read_results(&straight)),
+        without_wall(&read_results(&stopped))
+    );
 }

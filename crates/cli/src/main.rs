@@ -11,7 +11,6 @@ mod data;
 mod output;
 mod plot;
 mod progress;
-mod report;
 
 use clap::{Parser, Subcommand};
 
@@ -65,6 +64,11 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         // The reader of stdout has gone (`lgdm … | head`): nothing is wrong, stop quietly.
         Err(err) if output::is_stdout_closed(&err) => std::process::ExitCode::SUCCESS,
+        // A robot run stopped by Ctrl-C after a whole round: the shell's code for SIGINT.
+        Err(err) if err.downcast_ref::<cmd::sim::Interrupted>().is_some() => {
+            output::errln!("{err:#}");
+            std::process::ExitCode::from(130)
+        }
         Err(err) => {
             output::errln!("error: {err:#}");
             std::process::ExitCode::FAILURE

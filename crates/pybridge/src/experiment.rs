@@ -6,6 +6,9 @@
 //! numpy arrays) into C-contiguous arrays; this layer checks the label columns, builds the
 //! experiment and runs it with the GIL released.
 
+use std::path::PathBuf;
+
+use lgdm_gdm::experiment::run_dir::{self, Provenance, RunConfig, RunDir};
 use lgdm_gdm::experiment::{self, Experiment, Scenario, Settings, Table};
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -77,7 +80,8 @@ pub fn scenario_defaults<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py
     features_, collection, category, instance, sequence, frame, train_collections,
     test_collections, categories, scenario_name, *, instances=Vec::new(), config=None, trials=None, seed=0,
     replay=None, context=true, epochs=None, eval_every=None, eval_samples=None, train_samples=0,
-    validate=false, jobs=None, encoder="good", dataset=""
+    validate=false, jobs=None, encoder="good", dataset="", hyperparameters_from="",
+    out=None, force=false, resume=false
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn run_scenario(
@@ -106,22 +110,38 @@ pub fn run_scenario(
     jobs: Option<usize>,
     encoder: &str,
     dataset: &str,
+    hyperparameters_from: &str,
+    out: Option<PathBuf>,
+    force: bool,
+    resume: bool,
 ) -> PyResult<(String, Vec<Model>)> {
-    let mut settings = Settings::new(scenario(scenario_name)?);
-    if let Some(text) = config {
-        settings.config = config_from_json(text)?;
-    }
-    if !context {
-        settings = settings.without_context();
-    }
-    settings.trials = trials.unwrap_or(settings.trials);
-    settings.seed = seed;
-    settings.replay = replay.unwrap_or(settings.replay);
-    settings.epochs = epochs.unwrap_or(settings.epochs);
-    settings.eval_every = eval_every;
-    settings.eval_samples = eval_samples.unwrap_or(settings.eval_samples);
-    settings.train_samples = train_samples;
-    settings.validate = validate;
+    // Resuming: the run's own settings, from its config.toml.
+    let recorded = match (&out, resume) {
+        (Some(dir), true) => Some(RunConfig::read(dir).map_err(experiment_error)?),
+        (None, true) => return Err(errors::input("resume needs the run directory: out=…")),
+        _ => None,
+    };
+    let (settings, hyperparameters_from) = match &recorded {
+        Some(config) => (config.settings(), config.hyperparameters_from.clone()),
+        None => {
+            let mut settings = Settings::new(scenario(scenario_name)?);
+            if let Some(text) = config {
+                settings.config = config_from_json(text)?;
+            }
+            if !context {
+                settings = settings.without_context();
+            }
+            settings.trials = trials.unwrap_or(settings.trials);
+            settings.seed = seed;
+            settings.replay = replay.unwrap_or(settings.replay);
+            settings.epochs = epochs.unwrap_or(settings.epochs);
+            settings.eval_every = eval_every;
+            settings.eval_samples = eval_samples.unwrap_or(settings.eval_samples);
+            settings.train_samples = train_samples;
+            settings.validate = validate;
+            (settings, hyperparameters_from.to_string())
+        }
+    };
     let jobs = jobs.unwrap_or_else(experiment::default_jobs);
 
     let (x, n, dim) = features(&features_, None)?;
@@ -144,13 +164,64 @@ pub fn run_scenario(
         instance_names: &instances,
     };
     let experiment = Experiment::new(table, settings).map_err(experiment_error)?;
-    let runs = py
-        .detach(|| experiment.run(jobs, &|_| {}))
+    let Some(dir) = out else {
+        let runs = py
+            .detach(|| experiment.run(jobs, &|_| {}))
+            .map_err(experiment_error)?;
+        let (models, records): (Vec<_>, Vec<_>) = runs
+            .into_iter()
+            .map(|(gdm, record)| (Model::from_gdm(gdm), record))
+            .unzip();
+        let metrics = experiment.metrics(records, encoder, dataset);
+        return Ok((metrics.to_json(), models));
+    };
+    // A run directory, as `lgdm train --out` (or `--resume`) leaves it, the plots aside.
+    let provenance = Provenance {
+        encoder: encoder.into(),
+        dataset: dataset.into(),
+        hyperparameters_from,
+        ae_checkpoint: None,
+        ae_checkpoint_fnv1a: None,
+    };
+    let run_config = RunConfig::new(&experiment, &provenance);
+    let trials = experiment.settings().trials;
+    let (run_dir, finished) = if resume {
+        let run_dir = RunDir::resume(&dir, &run_config).map_err(experiment_error)?;
+        let finished = run_dir.finished_trials(trials).map_err(experiment_error)?;
+        (run_dir, finished)
+    } else {
+        let run_dir = RunDir::create(&dir, force).map_err(experiment_error)?;
+        run_dir
+            .write_config(&run_config)
+            .map_err(experiment_error)?;
+        (run_dir, vec![None; trials])
+    };
+    let metrics = py
+        .detach(|| run_dir.play(&experiment, finished, jobs, &|_| {}, encoder, dataset))
         .map_err(experiment_error)?;
-    let (models, records): (Vec<_>, Vec<_>) = runs
-        .into_iter()
-        .map(|(gdm, record)| (Model::from_gdm(gdm), record))
-        .unzip();
-    let metrics = experiment.metrics(records, encoder, dataset);
+    let models = (0..trials)
+        .map(|t| {
+            let path = dir.join(run_dir::model_file(t));
+            lgdm_gdm::Gdm::load(&path)
+                .map(Model::from_gdm)
+                .map_err(|e| errors::input(format!("{}: {e}", path.display())))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
     Ok((metrics.to_json(), models))
+}
+
+/// `lgdm merge` for Python (`lgdm.merge_runs`): the run directories `runs`, checked to be one
+/// experiment, merged into the new run directory `out`; returns `metrics.json`'s text.
+#[pyfunction]
+#[pyo3(signature = (runs, out, *, force=false))]
+pub fn merge_runs(
+    py: Python<'_>,
+    runs: Vec<PathBuf>,
+    out: PathBuf,
+    force: bool,
+) -> PyResult<String> {
+    let (merged, _missing) = py
+        .detach(|| run_dir::merge_into(&runs, &out, force))
+        .map_err(experiment_error)?;
+    Ok(merged.metrics.to_json())
 }

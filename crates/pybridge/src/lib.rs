@@ -28,6 +28,7 @@
 #[cfg(feature = "ae")]
 pub mod ae;
 pub mod data;
+pub mod decode;
 pub mod errors;
 pub mod experiment;
 pub mod model;
@@ -57,6 +58,7 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::Model>()?;
     m.add_function(wrap_pyfunction!(model::config_json, m)?)?;
     m.add_function(wrap_pyfunction!(experiment::run_scenario, m)?)?;
+    m.add_function(wrap_pyfunction!(experiment::merge_runs, m)?)?;
     m.add_function(wrap_pyfunction!(experiment::scenario_defaults, m)?)?;
     m.add_class::<data::PyDataset>()?;
     m.add_class::<data::SequenceIter>()?;
@@ -69,5 +71,6 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::sim_grasp, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_pick_place, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_resume, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_decode_grasps, m)?)?;
     Ok(())
 }

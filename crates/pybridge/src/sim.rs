@@ -13,11 +13,9 @@
 use std::path::PathBuf;
 
 use lgdm_pointcloud::Progress;
-use lgdm_pointcloud::grasp::decode::{DecodedGrasp, wrap_angle};
+use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspMapsView, decode_grasps, wrap_angle};
 use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::camera::ObjectDrawing;
-use lgdm_sim::config::{ConfigOverrides, SimConfig};
-use lgdm_sim::gripper::GripperModel;
+use lgdm_sim::config::{ConfigOverrides, OptionValue, SimConfig};
 use lgdm_sim::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
 };
@@ -25,13 +23,13 @@ use lgdm_sim::recognize::{EncoderError, GoodEncoder, RecognitionConfig, ViewEnco
 use lgdm_sim::record::RecordConfig;
 use lgdm_sim::results::RunResults;
 use lgdm_sim::scenario::Scenario;
-use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
 use lgdm_sim::spec::{SimError, StopToken, builtin_source};
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 
+use crate::decode::{crop_from_input, decode_params};
 use crate::errors::{self, Kind};
 
 /// A grasp source that calls a Python callable with the robot's crop.
@@ -73,6 +71,7 @@ impl CallableSource {
         d.set_item("table_depth_m", crop.table_depth_m)?;
         d.set_item("stroke_m", query.gripper.max_opening_m)?;
         d.set_item("finger_width_m", query.gripper.finger_width_m)?;
+        d.set_item("max_grasps", k)?;
         let answer = self.callable.call1(py, (d,))?;
         let answer = answer.bind(py);
         let list = answer.cast::<PyList>().map_err(|_| {
@@ -391,34 +390,15 @@ fn config(
     draw: Option<&str>,
     shapes: Option<&str>,
 ) -> PyResult<SimConfig> {
-    let bad = |what: &str, v: &str, known: &str| {
-        errors::new(
-            Kind::Config,
-            format!("{what}: unknown `{v}` (known: {known})"),
-        )
-    };
+    fn parse<T: OptionValue>(word: Option<&str>) -> PyResult<Option<T>> {
+        word.map(T::parse)
+            .transpose()
+            .map_err(|e| errors::new(Kind::Config, e))
+    }
     let overrides = ConfigOverrides {
-        gripper: gripper
-            .map(|g| match g {
-                "2f-85" => Ok(GripperModel::Robotiq2F85),
-                "2f-140" => Ok(GripperModel::Robotiq2F140),
-                other => Err(bad("gripper", other, "2f-140, 2f-85")),
-            })
-            .transpose()?,
-        draw: draw
-            .map(|d| match d {
-                "collider" => Ok(ObjectDrawing::Collider),
-                "mesh" => Ok(ObjectDrawing::Mesh),
-                other => Err(bad("draw", other, "collider, mesh")),
-            })
-            .transpose()?,
-        shapes: shapes
-            .map(|s| match s {
-                "decomposition" => Ok(ObjectShape::Decomposition),
-                "hull" => Ok(ObjectShape::Hull),
-                other => Err(bad("shapes", other, "decomposition, hull")),
-            })
-            .transpose()?,
+        gripper: parse(gripper)?,
+        draw: parse(draw)?,
+        shapes: parse(shapes)?,
     };
     SimConfig::resolve(file.as_deref(), &overrides)
         .map_err(|e| errors::new(Kind::Config, format!("config {e}")))
@@ -733,4 +713,83 @@ pub fn sim_resume(
             )
         }
     }
+}
+
+/// The grasp autoencoder's maps — quality, cos 2θ, sin 2θ and width, each `(H, H)` float32 at
+/// the network's input size — decoded as `python -m train_ae.evaluate` decodes them into at most
+/// `num_grasps` grasps (best first) with the checkpoint's jaw (`jaw_side_fraction`; `None`:
+/// half the opening), moved to the pixels of the `crop_px`-side crop the input was resized from
+/// (default: the maps' own size). The dicts are the grasp callables' convention
+/// (`lgdm.sim.decode_grasps`): a callable wrapping the network with it gives the robot the
+/// grasps `--grasp network` gives, bit for bit.
+#[pyfunction]
+#[pyo3(signature = (quality, cos2t, sin2t, width, *, num_grasps = 1, jaw_side_fraction = None, crop_px = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn sim_decode_grasps<'py>(
+    py: Python<'py>,
+    quality: PyReadonlyArray2<'py, f32>,
+    cos2t: PyReadonlyArray2<'py, f32>,
+    sin2t: PyReadonlyArray2<'py, f32>,
+    width: PyReadonlyArray2<'py, f32>,
+    num_grasps: usize,
+    jaw_side_fraction: Option<f32>,
+    crop_px: Option<usize>,
+) -> PyResult<Bound<'py, PyList>> {
+    let shape = quality.shape().to_vec();
+    for (name, map) in [("cos2t", &cos2t), ("sin2t", &sin2t), ("width", &width)] {
+        if map.shape() != shape.as_slice() {
+            return Err(errors::input(format!(
+                "{name} is {:?}, quality {shape:?}: the four maps have one shape",
+                map.shape()
+            )));
+        }
+    }
+    let (rows, cols) = (shape[0], shape[1]);
+    let (q, c, s, w) = (
+        quality
+            .as_slice()
+            .map_err(|_| errors::input("quality is not contiguous"))?,
+        cos2t
+            .as_slice()
+            .map_err(|_| errors::input("cos2t is not contiguous"))?,
+        sin2t
+            .as_slice()
+            .map_err(|_| errors::input("sin2t is not contiguous"))?,
+        width
+            .as_slice()
+            .map_err(|_| errors::input("width is not contiguous"))?,
+    );
+    let maps = GraspMapsView {
+        rows,
+        cols,
+        quality: q,
+        cos2t: c,
+        sin2t: s,
+        width: w,
+    };
+    if num_grasps == 0 {
+        return Ok(PyList::empty(py));
+    }
+    let grasps = decode_grasps(maps, &decode_params(jaw_side_fraction, num_grasps))
+        .map_err(|e| errors::input(e.to_string()))?;
+    let list = PyList::empty(py);
+    for g in grasps {
+        let g = match crop_px {
+            Some(n) if rows == cols => crop_from_input(&g, n, rows),
+            Some(_) => {
+                return Err(errors::input(format!(
+                    "crop_px: the maps are {rows} × {cols}, not square"
+                )));
+            }
+            None => g,
+        };
+        let d = PyDict::new(py);
+        d.set_item("center_px", (g.center_px[0], g.center_px[1]))?;
+        d.set_item("angle", g.angle)?;
+        d.set_item("width_px", g.width_px)?;
+        d.set_item("jaw_px", g.jaw_px)?;
+        d.set_item("quality", g.quality)?;
+        list.append(d)?;
+    }
+    Ok(list)
 }

@@ -177,6 +177,62 @@ def test_run_scenario_equals_the_cli_metrics(
 
 
 
+def test_run_directories_from_python_are_the_clis(cli, small_dataset, tmp_path):
+    """``run_scenario(out=…)`` writes the run directory ``lgdm train --out`` writes (config.toml,
+    metrics.json but wall times, summary.txt's rows, the models); ``resume_scenario`` finishes a
+    run cut after its first trial to the same bytes; ``merge_runs`` of two one-trial runs is the
+    two-trial run, and ``lgdm merge`` and ``lgdm eval`` read what Python wrote."""
+    ds = small_dataset
+    cache = tmp_path / "cache"
+    cli_out = tmp_path / "cli"
+    run(cli, "train", "--scenario", "ni", "--dataset", ds.path, "--trials", 2, "--seed", 4,
+        "--out", cli_out, "--progress", "none", cache=cache)  # fmt: skip
+    table = lgdm.good_features(ds)
+    py_out = tmp_path / "py"
+    metrics = lgdm.run_scenario(table, "ni", trials=2, seed=4, out=py_out)
+    written = json.loads((py_out / "metrics.json").read_text())
+    assert without_times(metrics) == without_times(written)
+    assert without_times(metrics) == without_times(
+        json.loads((cli_out / "metrics.json").read_text())
+    )
+    assert (py_out / "config.toml").read_text() == (cli_out / "config.toml").read_text()
+    for t in range(2):
+        name = f"model-trial{t}.lgdm"
+        assert (py_out / name).read_bytes() == (cli_out / name).read_bytes()
+    rows = lambda d: (d / "summary.txt").read_text().splitlines()[:5]  # noqa: E731
+    assert rows(py_out) == rows(cli_out)
+    # A run directory is not written over without force=True.
+    with pytest.raises(lgdm.InputError, match="force"):
+        lgdm.run_scenario(table, "ni", trials=2, seed=4, out=py_out)
+
+    # Cut after trial 0 (trial 1's model and record, and metrics.json, never written) and resumed.
+    cut = tmp_path / "cut"
+    lgdm.run_scenario(table, "ni", trials=2, seed=4, out=cut)
+    for name in ("model-trial1.lgdm", "metrics.json", "summary.txt"):
+        (cut / name).unlink()
+    (cut / "trials" / "trial-1.json").unlink()
+    resumed, models = lgdm.resume_scenario(table, cut, return_models=True)
+    assert without_times(resumed) == without_times(metrics)
+    assert (cut / "model-trial1.lgdm").read_bytes() == (py_out / "model-trial1.lgdm").read_bytes()
+    assert models[1].to_bytes() == (py_out / "model-trial1.lgdm").read_bytes()
+
+    # Two one-trial runs (seeds 4 and 5) merge into the two-trial run, in Python and in the CLI.
+    one = [tmp_path / "seed4", tmp_path / "seed5"]
+    for seed, out in zip((4, 5), one, strict=True):
+        lgdm.run_scenario(table, "ni", trials=1, seed=seed, out=out)
+    merged = lgdm.merge_runs(one, tmp_path / "merged")
+    assert without_times(merged) == without_times(metrics)
+    run(cli, "merge", *one, "--out", tmp_path / "cli-merged", cache=cache)
+    assert without_times(json.loads((tmp_path / "cli-merged" / "metrics.json").read_text())) == (
+        without_times(metrics)
+    )
+    with pytest.raises(lgdm.InputError, match="different experiments"):
+        other = tmp_path / "nc"
+        lgdm.run_scenario(table, "nc", trials=1, seed=6, out=other)
+        lgdm.merge_runs([one[0], other], tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
+
+
 def test_pick_place_model_loads_in_python(cli, tmp_path):
     """The model a robot run learnt (``lgdm sim pick-place``) loads with ``lgdm.GDM.load``, with
     the node counts the run reports and GOOD's 675 inputs."""

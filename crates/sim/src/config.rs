@@ -21,6 +21,92 @@ use crate::scenario::ScenarioConfig;
 use crate::shapes::{ObjectShape, ShapeConfig};
 use crate::world::WorldConfig;
 
+/// A constant the robot commands set by a word (`--gripper 2f-85`, Python's `gripper="2f-85"`):
+/// the one spelling of each value, which the CLI's options and `lgdm.sim`'s keywords both parse.
+pub trait OptionValue: Copy + Send + Sync + 'static {
+    /// The option's name (`gripper`).
+    const OPTION: &'static str;
+    /// Every value, in the order help lists them.
+    const ALL: &'static [Self];
+    /// The value's word.
+    fn word(self) -> &'static str;
+    /// One line on the value (the CLI's help).
+    fn help(self) -> &'static str;
+    /// The value named `word`; the error names the option and lists the known words.
+    fn parse(word: &str) -> Result<Self, String> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|v| v.word() == word)
+            .ok_or_else(|| {
+                let known: Vec<_> = Self::ALL.iter().map(|v| v.word()).collect();
+                format!(
+                    "{}: unknown `{word}` (known: {})",
+                    Self::OPTION,
+                    known.join(", ")
+                )
+            })
+    }
+}
+
+impl OptionValue for GripperModel {
+    const OPTION: &'static str = "gripper";
+    const ALL: &'static [Self] = &GripperModel::ALL;
+    fn word(self) -> &'static str {
+        self.name()
+    }
+    fn help(self) -> &'static str {
+        match self {
+            GripperModel::Robotiq2F85 => "Robotiq 2F-85: 85 mm stroke",
+            GripperModel::Robotiq2F140 => {
+                "Robotiq 2F-140: 140 mm stroke, longer fingers (the paper's pybullet robot's)"
+            }
+        }
+    }
+}
+
+impl OptionValue for ObjectDrawing {
+    const OPTION: &'static str = "draw";
+    const ALL: &'static [Self] = &[ObjectDrawing::Mesh, ObjectDrawing::Collider];
+    fn word(self) -> &'static str {
+        match self {
+            ObjectDrawing::Mesh => "mesh",
+            ObjectDrawing::Collider => "collider",
+        }
+    }
+    fn help(self) -> &'static str {
+        match self {
+            ObjectDrawing::Mesh => {
+                "The object's mesh, as in the dataset (the collider only approximates it)"
+            }
+            ObjectDrawing::Collider => {
+                "The physics collider in the mesh's colours (default): the camera sees what the \
+                 fingers meet"
+            }
+        }
+    }
+}
+
+impl OptionValue for ObjectShape {
+    const OPTION: &'static str = "shapes";
+    const ALL: &'static [Self] = &[ObjectShape::Hull, ObjectShape::Decomposition];
+    fn word(self) -> &'static str {
+        match self {
+            ObjectShape::Hull => "hull",
+            ObjectShape::Decomposition => "decomposition",
+        }
+    }
+    fn help(self) -> &'static str {
+        match self {
+            ObjectShape::Hull => "Each object's convex hull: openings and handles are filled",
+            ObjectShape::Decomposition => {
+                "A convex decomposition where the mesh is open (default; VHACD, 0.1–0.5 s per \
+                 object once): openings stay open"
+            }
+        }
+    }
+}
+
 /// What the robot commands' options (`--gripper`, `--draw`, `--shapes`) set on top of a config
 /// file ([`SimConfig::resolve`]); `None` leaves the file's (or the default) value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

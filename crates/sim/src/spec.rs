@@ -262,4 +262,10 @@ impl StopToken {
     pub fn is_stopped(&self) -> bool {
         self.0.load(std::sync::atomic::Ordering::SeqCst)
     }
+
+    /// The shared flag, for a signal handler that sets it (`signal_hook::flag::register`):
+    /// setting it is [`StopToken::stop`].
+    pub fn flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+        std::sync::Arc::clone(&self.0)
+    }
 }

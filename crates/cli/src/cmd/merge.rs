@@ -13,10 +13,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
-use lgdm_gdm::experiment::run_dir::{self, Run, RunDir, merge};
+use lgdm_gdm::experiment::report::summary_table;
+use lgdm_gdm::experiment::run_dir::merge_into;
 
 use crate::output::{errln, outln};
-use crate::report;
 
 /// Arguments of `lgdm merge`.
 #[derive(Debug, ClapArgs)]
@@ -35,12 +35,7 @@ pub struct Args {
 
 /// Runs `lgdm merge`.
 pub fn run(args: Args) -> Result<()> {
-    let runs = args
-        .runs
-        .iter()
-        .map(|d| Run::read(d))
-        .collect::<Result<Vec<_>, _>>()?;
-    let merged = merge(&runs)?;
+    let (merged, missing) = merge_into(&args.runs, &args.out, args.force)?;
     let metrics = &merged.metrics;
     let seeds: Vec<u64> = metrics.trials.iter().map(|t| t.seed).collect();
     if seeds.windows(2).any(|w| w[1] != w[0] + 1) {
@@ -51,29 +46,16 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let out = &args.out;
-    let resolved = |p: &std::path::Path| std::fs::canonicalize(p).unwrap_or(p.to_path_buf());
-    if let Some(input) = args.runs.iter().find(|r| resolved(r) == resolved(out)) {
-        anyhow::bail!(
-            "--out {} is one of the runs being merged ({}): the merge would overwrite its own \
-             input; choose a new directory",
-            out.display(),
-            input.display()
-        );
-    }
-    let run_dir = RunDir::create(out, args.force)?;
-    let missing = merged.write(&run_dir)?;
     crate::plot::write_run_plots(out, metrics).context("drawing the plots")?;
-    let table = report::summary_table(metrics);
-    run_dir::write_atomic(&out.join("summary.txt"), table.as_bytes())?;
     if missing > 0 {
         errln!(
             "note: {missing} trial model(s) were not found next to their metrics.json and are not linked"
         );
     }
-    outln!("{table}")?;
+    outln!("{}", summary_table(metrics))?;
     outln!(
         "merged {} run(s), {} trial(s), seeds {seeds:?}: {}",
-        runs.len(),
+        args.runs.len(),
         metrics.trials.len(),
         out.display()
     )?;

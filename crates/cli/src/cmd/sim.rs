@@ -16,13 +16,12 @@
 //! by the library before the run directory is touched.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::config::{ConfigOverrides, SimConfig};
-use lgdm_sim::gripper::GripperModel;
 use lgdm_sim::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
     PickPlaceSetup,
@@ -32,9 +31,8 @@ use lgdm_sim::record::RecordConfig;
 use lgdm_sim::report::summary_text;
 use lgdm_sim::results::RunResults;
 use lgdm_sim::run_dir::ROUNDS_DIR;
-use lgdm_sim::shapes::ObjectShape;
 use lgdm_sim::source::GraspSource;
-use lgdm_sim::spec::{SimError, builtin_source};
+use lgdm_sim::spec::{SimError, StopToken, builtin_source};
 
 use crate::data::Encoder;
 use crate::output::outln;
@@ -206,18 +204,9 @@ fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
         );
     }
     let overrides = ConfigOverrides {
-        gripper: args.gripper.map(|g| match g {
-            GripperArg::Robotiq2F85 => GripperModel::Robotiq2F85,
-            GripperArg::Robotiq2F140 => GripperModel::Robotiq2F140,
-        }),
-        draw: args.draw.map(|d| match d {
-            DrawArg::Mesh => ObjectDrawing::Mesh,
-            DrawArg::Collider => ObjectDrawing::Collider,
-        }),
-        shapes: args.shapes.map(|s| match s {
-            ShapesArg::Hull => ObjectShape::Hull,
-            ShapesArg::Decomposition => ObjectShape::Decomposition,
-        }),
+        gripper: args.gripper,
+        draw: args.draw,
+        shapes: args.shapes,
     };
     SimConfig::resolve(args.config.as_deref(), &overrides)
         .map_err(|e| anyhow::anyhow!("--config {e}"))
@@ -237,6 +226,61 @@ fn output(args: &RobotArgs) -> Option<Output> {
         force: args.force,
     })
 }
+
+/// A robot run stopped by Ctrl-C after a whole round: its run directory holds the finished
+/// rounds and `--resume` plays the rest. `main` exits with 130, the shell's code for SIGINT.
+#[derive(Debug)]
+pub struct Interrupted {
+    command: &'static str,
+    out: std::path::PathBuf,
+    rounds_done: usize,
+}
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "stopped by Ctrl-C after {} finished round(s), each written to {}; `lgdm {} --resume \
+             {}` plays the rest",
+            self.rounds_done,
+            self.out.display(),
+            self.command,
+            self.out.display()
+        )
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// Ctrl-C asks `stop`'s job to stop after the round it is playing (nothing half-written;
+/// `--resume` plays the rest); a second Ctrl-C quits at once, as an unguarded process would.
+fn stop_on_ctrl_c(stop: &StopToken) -> Result<()> {
+    use signal_hook::consts::SIGINT;
+    let flag = stop.flag();
+    // Registered first, this handler runs before the flag is set: it quits only when an earlier
+    // Ctrl-C set it.
+    signal_hook::flag::register_conditional_shutdown(SIGINT, 130, Arc::clone(&flag))
+        .context("setting up Ctrl-C")?;
+    signal_hook::flag::register(SIGINT, flag).context("setting up Ctrl-C")?;
+    Ok(())
+}
+
+/// The job's error, a stop by Ctrl-C told as [`Interrupted`].
+fn run_error(e: SimError, command: &'static str, out: &Path, context: &str) -> anyhow::Error {
+    match e {
+        SimError::Stopped { rounds_done } => Interrupted {
+            command,
+            out: out.to_path_buf(),
+            rounds_done,
+        }
+        .into(),
+        other => cli_error(other).context(context.to_string()),
+    }
+}
+
+/// The progress line said once a Ctrl-C has asked the run to stop.
+const STOPPING: &str = "Ctrl-C: stopping after this round (whole rounds stay in the run \
+                        directory; Ctrl-C again quits at once)";
 
 /// The grasp source a resumed run's record names.
 fn recorded_grasp(name: &str) -> Result<GraspArg> {
@@ -297,17 +341,24 @@ fn grasp(args: GraspArgs) -> Result<()> {
     let job = GraspJob::prepare(setup).map_err(cli_error)?;
     report_meshes(job.library(), &reporter);
     let mut source = source(grasp, checkpoint.as_deref(), seed, None, &reporter)?;
+    let stop = job.stop_token();
+    stop_on_ctrl_c(&stop)?;
     let started = Instant::now();
     let mut task = reporter.bar("sim grasp", rounds as u64);
-    let progress = |p: lgdm_pointcloud::Progress| task.update_coarse(p.stage, p.done, p.total);
+    let mut told = false;
+    let progress = |p: lgdm_pointcloud::Progress| {
+        if stop.is_stopped() && !std::mem::replace(&mut told, true) {
+            reporter.message(STOPPING);
+        }
+        task.update_coarse(p.stage, p.done, p.total)
+    };
     let results = match resume {
         true => job.resume(source.as_mut(), progress),
         false => job.run(source.as_mut(), progress),
     };
     task.finish();
-    let results = results
-        .map_err(cli_error)
-        .context("running the grasp trials")?;
+    let results =
+        results.map_err(|e| run_error(e, "sim grasp", &out, "running the grasp trials"))?;
     write_plots(&out, &results).context("drawing the plots")?;
     let s = &results.summary;
     reporter.event(&serde_json::json!({
@@ -376,18 +427,25 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
         &reporter,
     )?;
     let encoder = view_encoder(ae_encoder, checkpoint.as_deref(), &reporter)?;
+    let stop = job.stop_token();
+    stop_on_ctrl_c(&stop)?;
     let started = Instant::now();
     let total = attempts.unwrap_or(job.spec().rounds) as u64;
     let mut task = reporter.bar(command, total);
-    let progress = |p: lgdm_pointcloud::Progress| task.update_coarse(p.stage, p.done, p.total);
+    let mut told = false;
+    let progress = |p: lgdm_pointcloud::Progress| {
+        if stop.is_stopped() && !std::mem::replace(&mut told, true) {
+            reporter.message(STOPPING);
+        }
+        task.update_coarse(p.stage, p.done, p.total)
+    };
     let results = match resume {
         true => job.resume(source.as_mut(), encoder, progress),
         false => job.run(source.as_mut(), encoder, progress),
     };
     task.finish();
-    let results = results
-        .map_err(cli_error)
-        .with_context(|| format!("running {command}"))?;
+    let results =
+        results.map_err(|e| run_error(e, command, &out, &format!("running {command}")))?;
     write_plots(&out, &results).context("drawing the plots")?;
     write_learning_plots(&out, &results).context("drawing the learning curve")?;
     write_packing_plots(&out, &results).context("drawing the packing plots")?;

@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::data::{self, Encoder};
 use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
-use crate::report;
+use lgdm_gdm::experiment::report::summary_table;
 
 /// Flags that describe the experiment: none of them may accompany `--resume`.
 const EXPERIMENT_FLAGS: [&str; 17] = [
@@ -430,24 +430,19 @@ pub fn run(args: Args) -> Result<()> {
         task.update(&p.label, n.min(total_steps), total_steps);
         reporter.event(&serde_json::json!({ "event": "step", "progress": p }));
     };
-    let mut new = experiment
-        .run_with(&todo, jobs, &on_step, &|t, gdm, record| {
-            run_dir.save_trial(t, &gdm, &record)?;
-            Ok(record)
-        })?
-        .into_iter();
+    let metrics = run_dir.play(
+        &experiment,
+        finished,
+        jobs,
+        &on_step,
+        plan.encoder.name(),
+        &dataset,
+    );
     task.finish();
-    let trials = finished
-        .into_iter()
-        .map(|r| r.or_else(|| new.next()).expect("one record per trial"))
-        .collect();
-
-    let metrics = experiment.metrics(trials, plan.encoder.name(), &dataset);
-    run_dir.write_metrics(&metrics)?;
+    let metrics = metrics?;
     let out = run_dir.path();
     crate::plot::write_run_plots(out, &metrics).context("drawing the plots")?;
-    let table_text = report::summary_table(&metrics);
-    lgdm_gdm::experiment::run_dir::write_atomic(&out.join("summary.txt"), table_text.as_bytes())?;
+    let table_text = summary_table(&metrics);
     outln!("{table_text}")?;
     outln!("run directory: {}", out.display())?;
     Ok(())

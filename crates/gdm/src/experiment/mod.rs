@@ -52,6 +52,7 @@
 pub mod evaluation;
 pub mod plan;
 pub mod records;
+pub mod report;
 pub mod run_dir;
 mod runner;
 

@@ -1,6 +1,6 @@
 //! Terminal tables of a run's results (mean ± std over trials).
 
-use lgdm_gdm::experiment::{MeanStd, RunMetrics};
+use super::{MeanStd, RunMetrics};
 use std::fmt::Write;
 
 fn pct(m: &MeanStd) -> String {
@@ -15,7 +15,8 @@ fn num(m: &MeanStd, digits: usize) -> String {
     format!("{:.*} ± {:.*}", digits, m.mean, digits, m.std)
 }
 
-/// The summary table printed at the end of `lgdm train` and saved as `summary.txt`.
+/// The summary table printed at the end of `lgdm train` and saved as `summary.txt` (also by
+/// `lgdm merge` and `lgdm.run_scenario(out=…)`).
 pub fn summary_table(m: &RunMetrics) -> String {
     let s = &m.summary;
     let mut out = String::new();

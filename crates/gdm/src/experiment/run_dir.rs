@@ -33,6 +33,9 @@ pub const CONFIG_FILE: &str = "config.toml";
 /// The metrics file of a run.
 pub const METRICS_FILE: &str = "metrics.json";
 
+/// The summary table of a finished run ([`super::report::summary_table`]).
+pub const SUMMARY_FILE: &str = "summary.txt";
+
 pub use lgdm_base::fs::LOCK_FILE;
 /// The folder of per-trial records.
 pub const TRIALS_DIR: &str = "trials";
@@ -287,10 +290,8 @@ fn classify(name: &str, is_dir: bool) -> lgdm_base::fs::Entry {
     if let Some(inner) = name.strip_prefix("eval/") {
         return classify_eval(inner, is_dir);
     }
-    let ours = matches!(
-        name,
-        CONFIG_FILE | METRICS_FILE | TRIALS_DIR | "summary.txt"
-    ) || name.ends_with(".png")
+    let ours = matches!(name, CONFIG_FILE | METRICS_FILE | TRIALS_DIR | SUMMARY_FILE)
+        || name.ends_with(".png")
         || (name.starts_with("model-trial") && name.ends_with(".lgdm"))
         || is_temporary(name);
     if ours {
@@ -417,6 +418,44 @@ impl RunDir {
     pub fn write_metrics(&self, metrics: &RunMetrics) -> Result<(), ExperimentError> {
         write_atomic(&self.dir.join(METRICS_FILE), metrics.to_json().as_bytes())
     }
+
+    /// Plays the trials of `experiment` that `finished` has no record of (`jobs` at a time),
+    /// each saved here as it ends — so a run stopped at any point resumes from its finished
+    /// trials — then writes `metrics.json` and `summary.txt` ([`super::report::summary_table`])
+    /// from all the trials' records: what `lgdm train` and `lgdm.run_scenario(out=…)` leave in a
+    /// run directory (the binary adds its plots). `finished` comes from
+    /// [`RunDir::finished_trials`] (all `None` for a new run).
+    #[allow(clippy::too_many_arguments)]
+    pub fn play(
+        &self,
+        experiment: &Experiment<'_>,
+        finished: Vec<Option<TrialRecord>>,
+        jobs: usize,
+        progress: &(dyn Fn(super::StepProgress) + Sync),
+        encoder: &str,
+        dataset: &str,
+    ) -> Result<RunMetrics, ExperimentError> {
+        let todo: Vec<usize> = (0..finished.len())
+            .filter(|&t| finished[t].is_none())
+            .collect();
+        let mut new = experiment
+            .run_with(&todo, jobs, progress, &|t, gdm, record| {
+                self.save_trial(t, &gdm, &record)?;
+                Ok(record)
+            })?
+            .into_iter();
+        let trials = finished
+            .into_iter()
+            .map(|r| r.or_else(|| new.next()).expect("one record per trial"))
+            .collect();
+        let metrics = experiment.metrics(trials, encoder, dataset);
+        self.write_metrics(&metrics)?;
+        write_atomic(
+            &self.dir.join(SUMMARY_FILE),
+            super::report::summary_table(&metrics).as_bytes(),
+        )?;
+        Ok(metrics)
+    }
 }
 
 /// The first setting in which `b` differs from `a`, if any (seeds and trial counts may differ).
@@ -471,8 +510,8 @@ pub struct Merged {
 impl Merged {
     /// Writes the merged run into the run directory `out` (see [`RunDir::create`]):
     /// `config.toml`, each trial's model, hard-linked (copied where links fail) under its new
-    /// trial index, with its record, and `metrics.json`. Returns how many source models were
-    /// missing (not linked). A source run may not be `out` itself.
+    /// trial index, with its record, `metrics.json` and `summary.txt`. Returns how many source
+    /// models were missing (not linked). A source run may not be `out` itself.
     pub fn write(&self, out: &RunDir) -> Result<usize, ExperimentError> {
         out.write_config(&self.config)?;
         let mut missing = 0;
@@ -492,8 +531,42 @@ impl Merged {
             write_atomic(&dir.join(trial_file(*t)), json.as_bytes())?;
         }
         out.write_metrics(&self.metrics)?;
+        write_atomic(
+            &out.path().join(SUMMARY_FILE),
+            super::report::summary_table(&self.metrics).as_bytes(),
+        )?;
         Ok(missing)
     }
+}
+
+/// `lgdm merge` and `lgdm.merge_runs`: reads the run directories `runs`, checks that they are
+/// one experiment ([`merge`]) and writes the merged run into `out` ([`RunDir::create`] with
+/// `force`; never one of the inputs). Everything is checked before anything is written. Returns
+/// the merged run and how many source models were missing ([`Merged::write`]).
+pub fn merge_into(
+    runs: &[PathBuf],
+    out: &Path,
+    force: bool,
+) -> Result<(Merged, usize), ExperimentError> {
+    let read = runs
+        .iter()
+        .map(|d| Run::read(d))
+        .collect::<Result<Vec<_>, _>>()?;
+    let merged = merge(&read)?;
+    let resolved = |p: &Path| std::fs::canonicalize(p).unwrap_or(p.to_path_buf());
+    if let Some(input) = runs.iter().find(|r| resolved(r) == resolved(out)) {
+        return Err(run_dir_error(
+            out,
+            format!(
+                "is one of the runs being merged ({}): the merge would overwrite its own input; \
+                 choose a new directory",
+                input.display()
+            ),
+        ));
+    }
+    let run_dir = RunDir::create(out, force)?;
+    let missing = merged.write(&run_dir)?;
+    Ok((merged, missing))
 }
 
 /// Checks that the runs are one experiment and merges them, trials sorted by seed. Nothing is

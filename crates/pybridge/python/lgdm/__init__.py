@@ -43,7 +43,7 @@ from ._errors import (
     LgdmError,
     NotFittedError,
 )
-from ._experiment import SCENARIOS, run_scenario, scenario_defaults
+from ._experiment import SCENARIOS, merge_runs, resume_scenario, run_scenario, scenario_defaults
 from ._gdm import GDM, PRESETS, Prediction, config
 from ._lgdm import __version__
 
@@ -66,7 +66,9 @@ __all__ = [
     "generate_dataset",
     "good_descriptor",
     "good_features",
+    "merge_runs",
     "project_to_image",
+    "resume_scenario",
     "run_scenario",
     "scenario_defaults",
     "sim",

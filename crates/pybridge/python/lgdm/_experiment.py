@@ -7,7 +7,8 @@ table, settings and seed give exactly the records ``lgdm train`` writes to ``met
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from os import PathLike
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from . import _lgdm
 from ._errors import InputError
 from ._gdm import GDM, _config_json, _features, _ids
 
-__all__ = ["SCENARIOS", "run_scenario", "scenario_defaults"]
+__all__ = ["SCENARIOS", "merge_runs", "resume_scenario", "run_scenario", "scenario_defaults"]
 
 #: The scenario names, in the paper's order.
 SCENARIOS: tuple[str, ...] = tuple(_lgdm.SCENARIOS)
@@ -65,6 +66,8 @@ def run_scenario(
     test_collections: Any = None,
     categories: list[str] | None = None,
     return_models: bool = False,
+    out: str | PathLike[str] | None = None,
+    force: bool = False,
     **overrides: Any,
 ) -> dict[str, Any] | tuple[dict[str, Any], list[GDM]]:
     """Runs a scenario (``"batch"``, ``"incremental"``, ``"ni"``, ``"nc"`` or ``"nic"``) over
@@ -84,14 +87,103 @@ def run_scenario(
     do not depend on it). With ``return_models=True`` the final model of every trial comes
     back too, as :class:`GDM` objects: ``(metrics, models)``.
 
+    With ``out=`` the run writes a run directory as ``lgdm train --out`` does — ``config.toml``
+    first, each trial's model and record as it finishes, then ``metrics.json`` and
+    ``summary.txt`` (the plots are the command line's own) — so an interrupted run is finished
+    by :func:`resume_scenario`, runs of other seeds merge with :func:`merge_runs` (or
+    ``lgdm merge``), and ``lgdm eval`` reads its models. ``force=True`` replaces a run already
+    there, as ``--force``.
+
     >>> table = lgdm.good_features(lgdm.generate_dataset("data/"))  # doctest: +SKIP
     >>> with_replay = lgdm.run_scenario(table, "nc", trials=2)  # doctest: +SKIP
     >>> without = lgdm.run_scenario(table, "nc", trials=2, replay=False)  # doctest: +SKIP
     """
-    if not isinstance(table, Mapping):
-        raise InputError(f"table must be a mapping of arrays (lgdm.good_features), got {table!r}")
     if scenario not in SCENARIOS:
         raise InputError(f"unknown scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
+    config = None
+    hyperparameters_from = f"preset {preset or scenario_defaults(scenario)['preset']}"
+    if preset is not None or overrides:
+        if preset is None:
+            preset = scenario_defaults(scenario)["preset"]
+        config = _config_json(preset, overrides)
+        if overrides:
+            changed = ", ".join(f"{k}={v!r}" for k, v in sorted(overrides.items()))
+            hyperparameters_from += f" with {changed}"
+    return _run(
+        table,
+        scenario,
+        train_collections=train_collections,
+        test_collections=test_collections,
+        categories=categories,
+        return_models=return_models,
+        config=config,
+        trials=trials,
+        seed=seed,
+        replay=replay,
+        context=context,
+        epochs=epochs,
+        eval_every=eval_every,
+        eval_samples=eval_samples,
+        train_samples=train_samples,
+        validate=validate,
+        jobs=jobs,
+        hyperparameters_from=hyperparameters_from,
+        out=None if out is None else str(out),
+        force=force,
+    )
+
+
+def resume_scenario(
+    table: Mapping[str, Any],
+    run_dir: str | PathLike[str],
+    *,
+    jobs: int | None = None,
+    return_models: bool = False,
+) -> dict[str, Any] | tuple[dict[str, Any], list[GDM]]:
+    """Finishes the run directory ``run_dir`` that :func:`run_scenario` (``out=``) or ``lgdm
+    train`` started and did not finish, with its own settings (its ``config.toml``) on the same
+    ``table``: the trials it recorded stay as they are, the others are played, and the result —
+    ``metrics.json`` and every model — is what a run never stopped gives (as ``lgdm train
+    --resume``). A table from another dataset or encoder is refused before anything is written.
+    Returns what :func:`run_scenario` returns.
+    """
+    return _run(
+        table,
+        "",
+        train_collections=None,
+        test_collections=None,
+        categories=None,
+        return_models=return_models,
+        jobs=jobs,
+        out=str(run_dir),
+        resume=True,
+    )
+
+
+def merge_runs(
+    runs: Sequence[str | PathLike[str]], out: str | PathLike[str], *, force: bool = False
+) -> dict[str, Any]:
+    """``lgdm merge``: the run directories ``runs`` (of one experiment, other seeds) merged into
+    the new run directory ``out`` — ``metrics.json``, ``config.toml``, ``summary.txt`` and the
+    trials' models — as one run with all their trials (5 runs of ``trials=1, seed=k`` merge into
+    the ``trials=5`` run). Runs of different experiments, or one seed twice, are refused before
+    anything is written. Returns the merged ``metrics.json``.
+    """
+    return json.loads(_lgdm.merge_runs([str(r) for r in runs], str(out), force=force))
+
+
+def _run(
+    table: Mapping[str, Any],
+    scenario: str,
+    *,
+    train_collections: Any,
+    test_collections: Any,
+    categories: list[str] | None,
+    return_models: bool,
+    **settings: Any,
+) -> dict[str, Any] | tuple[dict[str, Any], list[GDM]]:
+    if not isinstance(table, Mapping):
+        raise InputError(f"table must be a mapping of arrays (lgdm.good_features), got {table!r}")
     missing = [k for k in ("features", *_COLUMNS) if k not in table]
     if missing:
         raise InputError(f"table lacks {', '.join(missing)}")
@@ -111,11 +203,6 @@ def run_scenario(
     if categories is None:
         ids = np.asarray(table["category"])
         categories = [f"category {c}" for c in range(int(ids.max()) + 1 if ids.size else 0)]
-    config = None
-    if preset is not None or overrides:
-        if preset is None:
-            preset = scenario_defaults(scenario)["preset"]
-        config = _config_json(preset, overrides)
     text, models = _lgdm.run_scenario(
         x,
         *columns,
@@ -124,19 +211,9 @@ def run_scenario(
         [str(c) for c in categories],
         scenario,
         instances=[str(i) for i in table.get("instances", [])],
-        config=config,
-        trials=trials,
-        seed=seed,
-        replay=replay,
-        context=context,
-        epochs=epochs,
-        eval_every=eval_every,
-        eval_samples=eval_samples,
-        train_samples=train_samples,
-        validate=validate,
-        jobs=jobs,
         encoder=str(table.get("encoder", "good")),
         dataset=str(table.get("dataset", "")),
+        **settings,
     )
     metrics = json.loads(text)
     if return_models:

@@ -199,8 +199,16 @@ def run_scenario(
     jobs: int | None = None,
     encoder: str = "good",
     dataset: str = "",
+    hyperparameters_from: str = "",
+    out: str | None = None,
+    force: bool = False,
+    resume: bool = False,
 ) -> tuple[str, list[Model]]:
-    """Runs a scenario over trials; ``(metrics.json text, final models)``."""
+    """Runs a scenario over trials; ``(metrics.json text, final models)``. With ``out`` it
+    writes (``resume``: finishes) a run directory as ``lgdm train`` does."""
+
+def merge_runs(runs: list[str], out: str, *, force: bool = False) -> str:
+    """``lgdm merge`` (``lgdm.merge_runs``): the merged run's metrics.json text."""
 
 def generate_dataset(
     out: str,
@@ -285,3 +293,15 @@ def sim_pick_place(
 def sim_resume(run_dir: str, *, grasp: Any | None, progress: Any | None) -> str:
     """Finishes the interrupted sim run in ``run_dir`` (``lgdm.sim.resume``): results.json's
     text."""
+
+def sim_decode_grasps(
+    quality: Any,
+    cos2t: Any,
+    sin2t: Any,
+    width: Any,
+    *,
+    num_grasps: int = 1,
+    jaw_side_fraction: float | None = None,
+    crop_px: int | None = None,
+) -> list[dict[str, Any]]:
+    """The grasp autoencoder's maps decoded by the Rust decoder (``lgdm.sim.decode_grasps``)."""

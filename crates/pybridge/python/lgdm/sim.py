@@ -17,14 +17,18 @@ object with one argument, the robot's crop, a dict of:
   looking straight down;
 - ``focal_px``: the crop's focal length in crop pixels — a crop pixel at depth ``d`` spans
   ``d / focal_px`` metres; ``table_depth_m``: the table's depth at the crop's centre;
-- ``stroke_m`` and ``finger_width_m``: the gripper.
+- ``stroke_m`` and ``finger_width_m``: the gripper;
+- ``max_grasps``: how many of the returned grasps the robot looks at (the first ones).
 
 It returns a list (best first; empty: no grasp found) of dicts in the grasp decoders'
 convention: ``center_px`` ``(x, y)`` (x the column, y the row, crop pixels), ``angle`` (the
 opening axis, radians counter-clockwise on screen from +x; taken modulo π), ``width_px`` (the
 opening, crop pixels) and optionally ``jaw_px`` (the jaws' extent across it; default the finger
 width at the table's depth) and ``quality`` (default 1). The robot plans and executes the first
-that it can place in the world, as it does with the built-in sources. An exception in the
+that it can place in the world and whose pads close on something, as it does with the built-in
+sources. A network giving the grasp autoencoder's four maps can decode them with
+:func:`decode_grasps`, as ``--grasp network`` does (``examples/python/network_grasps.py``
+wraps ``train_ae``'s network so). An exception in the
 callable stops the run with an :class:`LgdmError` naming the callable, the exception as its
 cause.
 
@@ -50,7 +54,16 @@ from typing import Any, Literal
 
 from . import _lgdm
 
-__all__ = ["GraspSource", "Progress", "ViewEncoder", "grasp", "packing", "pick_place", "resume"]
+__all__ = [
+    "GraspSource",
+    "Progress",
+    "ViewEncoder",
+    "decode_grasps",
+    "grasp",
+    "packing",
+    "pick_place",
+    "resume",
+]
 
 #: A grasp source: ``"analytic"``, ``"random"``, or a callable from the robot's crop to a list
 #: of grasps (see the module's docs).
@@ -268,6 +281,35 @@ def resume(
     ``__qualname__``).
     """
     return json.loads(_lgdm.sim_resume(str(run_dir), grasp=grasp, progress=progress))
+
+
+def decode_grasps(
+    quality: Any,
+    cos2t: Any,
+    sin2t: Any,
+    width: Any,
+    *,
+    num_grasps: int = 1,
+    jaw_side_fraction: float | None = None,
+    crop_px: int | None = None,
+) -> list[dict[str, Any]]:
+    """The grasp autoencoder's maps — quality, cos 2θ, sin 2θ and width, each ``(H, H)`` float32
+    at the network's input size — decoded as ``python -m train_ae.evaluate`` decodes them: at
+    most ``num_grasps`` grasps, best first, with the checkpoint's jaw (``jaw_side_fraction``,
+    ``train_ae.bridge.jaw_side_fraction``; ``None``: half the opening), in the pixels of the
+    ``crop_px``-side crop the input was resized from (default: the maps' own). The dicts are a
+    grasp callable's answer (the module's docs); it is the Rust decoder ``--grasp network``
+    uses, so a callable wrapping the network with it gives the robot the same grasps.
+    """
+    return _lgdm.sim_decode_grasps(
+        quality,
+        cos2t,
+        sin2t,
+        width,
+        num_grasps=num_grasps,
+        jaw_side_fraction=jaw_side_fraction,
+        crop_px=crop_px,
+    )
 
 
 def _recognition_run(

@@ -1,9 +1,10 @@
-"""``lgdm.sweep``: grids of robot runs (seeds × settings) as Ray tasks, gathered into one table.
+"""``lgdm.sweep``: grids of runs (seeds × settings) — robot runs and ``lgdm train`` scenarios —
+as Ray tasks, gathered into one table.
 
 A spec (TOML) names the command, the seeds, what every cell shares and the grid::
 
     [sweep]
-    command = "sim grasp"          # "sim grasp", "sim pick-place" or "sim packing"
+    command = "sim grasp"          # "sim grasp", "sim pick-place", "sim packing" or "train"
     seeds = [0, 1, 2]
 
     [base]                         # keyword arguments of lgdm.sim.<command>, for every cell
@@ -13,11 +14,18 @@ A spec (TOML) names the command, the seeds, what every cell shares and the grid:
     [grid]                         # every combination of these, for every seed
     grasp = ["analytic", "random"]
 
+``command = "train"`` runs :func:`lgdm.run_scenario`: ``[base]`` then holds ``dataset`` (a
+dataset directory, ``lgdm gen-dataset``'s; its GOOD features are computed once per cell) and
+``scenario``, and the keywords are ``run_scenario``'s (``trials``, ``replay``, ``epochs``,
+hyperparameter overrides such as ``episodic__activation_threshold``, …); a cell's directory is
+the run directory ``lgdm train`` writes, and the table reports the test accuracies (means over
+the cell's trials).
+
 Each cell — one setting of the grid and one seed — is one Ray task that runs the command as
-``lgdm.sim`` does and writes its own run directory, ``OUT/cells/<cell>/``: the same bytes as
-the same run done alone. The sweep gathers ``OUT/table.csv`` (one row per cell: the setting,
-the seed, ``ok`` or the cell's error, and the summary's rates; ``OUT/nodes.json`` says where
-each cell ran) and ``OUT/summary.csv`` with
+``lgdm.sim`` (or ``lgdm.run_scenario``) does and writes its own run directory,
+``OUT/cells/<cell>/``: the same bytes as the same run done alone. The sweep gathers
+``OUT/table.csv`` (one row per cell: the setting, the seed, ``ok`` or the cell's error, and the
+summary's rates; ``OUT/nodes.json`` says where each cell ran) and ``OUT/summary.csv`` with
 ``OUT/summary.png`` (per setting and rate: the mean over the seeds and its 95 % t interval). A
 failing cell is reported with its error while the others finish; ``resume=True`` keeps every
 cell whose run directory holds its results and runs only the rest.
@@ -52,8 +60,22 @@ except ImportError:  # Python 3.10
 
 __all__ = ["Cell", "cells", "main", "read_spec", "run"]
 
-#: The commands a sweep can run, and the ``lgdm.sim`` function each is.
-COMMANDS = {"sim grasp": "grasp", "sim pick-place": "pick_place", "sim packing": "packing"}
+#: The commands a sweep can run, and the ``lgdm.sim`` function each is (``train``:
+#: :func:`lgdm.run_scenario`).
+COMMANDS = {
+    "sim grasp": "grasp",
+    "sim pick-place": "pick_place",
+    "sim packing": "packing",
+    "train": "run_scenario",
+}
+
+#: What a ``train`` cell reports: the metrics.json summary's test accuracies (means).
+TRAIN_RATES = (
+    "test_instance_accuracy",
+    "test_category_accuracy_sm",
+    "test_category_accuracy_em",
+    "test_no_context_category_accuracy_sm",
+)
 
 #: The summary's rates a table reports, in its columns' order.
 RATES = (
@@ -147,14 +169,28 @@ def check_spec(spec: Mapping[str, Any]) -> None:
 
     from . import sim
 
-    function = getattr(sim, COMMANDS[sweep["command"]])
-    known = set(inspect.signature(function).parameters)
+    if sweep["command"] == "train":
+        if "dataset" not in base:
+            raise ConfigError("base.dataset: a train sweep needs a dataset directory")
+        scenario = base.get("scenario", (grid.get("scenario") or [None])[0])
+        if scenario is None:
+            raise ConfigError("base.scenario: a train sweep needs a scenario (or grid.scenario)")
+        # run_scenario's keywords, and hyperparameter overrides (section__field), which
+        # run_scenario checks when the cell runs.
+        from ._experiment import run_scenario
+
+        known = set(inspect.signature(run_scenario).parameters) - {"table", "overrides"}
+        known |= {"dataset", "scenario"}
+        known |= {k for k in (*base, *grid) if "__" in k}
+        where = "lgdm.run_scenario"
+    else:
+        function = getattr(sim, COMMANDS[sweep["command"]])
+        known = set(inspect.signature(function).parameters)
+        where = f"lgdm.sim.{function.__name__}"
     for table, keys in (("base", base), ("grid", grid)):
         wrong = set(keys) - known
         if wrong:
-            raise ConfigError(
-                f"{table}: {sorted(wrong)} are not options of lgdm.sim.{function.__name__}"
-            )
+            raise ConfigError(f"{table}: {sorted(wrong)} are not options of {where}")
 
 
 def cells(spec: Mapping[str, Any]) -> list[Cell]:
@@ -172,8 +208,11 @@ def _run_cell(spec: Mapping[str, Any], cell: Cell, out: str) -> dict[str, Any]:
     """Runs one cell into ``out``; ``{"summary": …}`` or ``{"error": …}``."""
     from . import sim
 
-    function = getattr(sim, COMMANDS[spec["sweep"]["command"]])
     kwargs = {**spec.get("base", {}), **dict(cell.setting), "seed": cell.seed, "out": out}
+    if spec["sweep"]["command"] == "train":
+        function = _train_cell
+    else:
+        function = getattr(sim, COMMANDS[spec["sweep"]["command"]])
     node = None
     try:
         import ray
@@ -189,9 +228,31 @@ def _run_cell(spec: Mapping[str, Any], cell: Cell, out: str) -> dict[str, Any]:
     return {"summary": results["summary"], "node": node}
 
 
+def _train_cell(*, dataset: str, scenario: str, **kwargs: Any) -> dict[str, Any]:
+    """A ``train`` cell: ``run_scenario`` on the dataset's GOOD features into ``out``, its
+    summary's test accuracies as rates (the means over the cell's trials)."""
+    from ._data import Dataset, good_features
+    from ._experiment import run_scenario
+
+    metrics = run_scenario(good_features(Dataset(dataset)), scenario, **kwargs)
+    return {"summary": _train_summary(metrics)}
+
+
+def _train_summary(metrics: Mapping[str, Any]) -> dict[str, Any]:
+    s = metrics["summary"]
+    return {
+        "trials": s["trials"],
+        **{r: {"value": (s.get(r) or {}).get("mean")} for r in TRAIN_RATES},
+    }
+
+
 def _finished(out: Path) -> dict[str, Any] | None:
     try:
         return {"summary": json.loads((out / "results.json").read_text())["summary"]}
+    except (OSError, ValueError, KeyError):
+        pass
+    try:
+        return {"summary": _train_summary(json.loads((out / "metrics.json").read_text()))}
     except (OSError, ValueError, KeyError):
         return None
 
@@ -210,6 +271,10 @@ def run(
     if not isinstance(spec, Mapping):
         spec = read_spec(spec)
     check_spec(spec)
+    if "dataset" in spec.get("base", {}):
+        # The cells may run elsewhere: the dataset as an absolute path.
+        base = {**spec["base"], "dataset": str(Path(spec["base"]["dataset"]).resolve())}
+        spec = {**spec, "base": base}
     try:
         import ray
     except ImportError as e:
@@ -268,8 +333,11 @@ def _row(cell: Cell, outcome: Mapping[str, Any]) -> dict[str, Any]:
     row["seed"] = cell.seed
     row["status"] = "ok" if "summary" in outcome else outcome["error"]
     summary = outcome.get("summary") or {}
-    row["attempts"] = summary.get("attempts", "")
-    for rate in RATES:
+    if "trials" in summary:
+        row["trials"] = summary["trials"]
+    else:
+        row["attempts"] = summary.get("attempts", "")
+    for rate in TRAIN_RATES if "trials" in summary else RATES:
         value = (summary.get(rate) or {}).get("value")
         row[rate] = "" if value is None else repr(float(value))
     return row
@@ -296,8 +364,8 @@ def _summarise(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     out = []
     for setting in dict.fromkeys(r["setting"] for r in rows):
         mine = [r for r in rows if r["setting"] == setting and r["status"] == "ok"]
-        for rate in RATES:
-            values = [float(r[rate]) for r in mine if r[rate] != ""]
+        for rate in (*RATES, *TRAIN_RATES):
+            values = [float(r[rate]) for r in mine if r.get(rate, "") != ""]
             if not values:
                 continue
             n = len(values)

@@ -34,7 +34,7 @@ pub mod grasps;
 pub mod robot;
 pub mod views;
 
-pub use grasps::{crop_from_input, decode_params};
+pub use crate::decode::{crop_from_input, decode_params};
 pub use views::{
     AE_BATCH, FeatureStats, PIPELINE, ViewImage, dataset_features, view_features, view_image,
 };

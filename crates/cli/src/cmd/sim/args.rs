@@ -3,8 +3,13 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
+use lgdm_sim::camera::ObjectDrawing;
+use lgdm_sim::config::OptionValue;
+use lgdm_sim::gripper::GripperModel;
 use lgdm_sim::scenario::Scenario;
+use lgdm_sim::shapes::ObjectShape;
 
 use crate::data::Encoder;
 use crate::progress::ProgressMode;
@@ -121,17 +126,6 @@ pub struct ObjectsArgs {
     pub from: Option<PathBuf>,
 }
 
-/// The grippers (`--gripper`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum GripperArg {
-    /// Robotiq 2F-85: 85 mm stroke.
-    #[value(name = "2f-85")]
-    Robotiq2F85,
-    /// Robotiq 2F-140: 140 mm stroke, longer fingers (the paper's pybullet robot's).
-    #[value(name = "2f-140")]
-    Robotiq2F140,
-}
-
 /// The scenarios (`--scenario`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ScenarioArg {
@@ -167,23 +161,15 @@ pub enum GraspArg {
     Network,
 }
 
-/// What the cameras draw for an object (`--draw`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DrawArg {
-    /// The object's mesh, as in the dataset (the collider only approximates it).
-    Mesh,
-    /// The physics collider in the mesh's colours (default): the camera sees what the fingers
-    /// meet.
-    Collider,
-}
-
-/// The objects' collider shapes (`--shapes`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ShapesArg {
-    /// Each object's convex hull: openings and handles are filled.
-    Hull,
-    /// A convex decomposition (default; VHACD, 0.1–0.5 s per object once): openings stay open.
-    Decomposition,
+/// The parser of an option whose words [`OptionValue`] spells (`--gripper`, `--draw`,
+/// `--shapes`): help lists each word with its line.
+fn option_value<T: OptionValue + Clone>() -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(
+        T::ALL
+            .iter()
+            .map(|v| PossibleValue::new(v.word()).help(v.help())),
+    )
+    .try_map(|word| T::parse(&word))
 }
 
 /// What every robot run takes: the grasp source, the objects, the physics and cameras, the
@@ -212,14 +198,14 @@ pub struct RobotArgs {
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// The gripper (default: the config's, else the 2F-140, the paper's)
-    #[arg(long, value_enum)]
-    pub gripper: Option<GripperArg>,
+    #[arg(long, value_parser = option_value::<GripperModel>())]
+    pub gripper: Option<GripperModel>,
     /// What the cameras draw for an object (default: the config's, else collider).
-    #[arg(long, value_enum)]
-    pub draw: Option<DrawArg>,
+    #[arg(long, value_parser = option_value::<ObjectDrawing>())]
+    pub draw: Option<ObjectDrawing>,
     /// The objects' collider shapes in the physics (default: the config's, else decomposition).
-    #[arg(long, value_enum)]
-    pub shapes: Option<ShapesArg>,
+    #[arg(long, value_parser = option_value::<ObjectShape>())]
+    pub shapes: Option<ObjectShape>,
     /// Record the rounds for Foxglove: rounds/round-NNNN.mcap and a storyboard
     /// rounds/round-NNNN.png per round.
     #[arg(long)]
