@@ -6,6 +6,7 @@ from __future__ import annotations
 import inspect
 import json
 import re
+import signal
 import subprocess
 import typing
 from pathlib import Path
@@ -255,7 +256,19 @@ def test_a_python_view_encoder_recognises_in_the_loop(tmp_path: Path):
         lgdm.sim.pick_place(attempts=2, encoder="fancy")
 
 
-def test_ctrl_c_stops_a_run_with_whole_rounds_written_and_it_resumes(tmp_path: Path):
+@pytest.fixture
+def python_sigint():
+    """SIGINT handled by Python's own handler (``KeyboardInterrupt``), as in a plain ``python``
+    process: ``_thread.interrupt_main`` does nothing under another handler, and a library loaded
+    earlier in the test process (e.g. by collecting the Ray tests) may have installed one."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
+def test_ctrl_c_stops_a_run_with_whole_rounds_written_and_it_resumes(
+    tmp_path: Path, python_sigint: None
+):
     """Ctrl-C (here ``_thread.interrupt_main`` from the source, as a signal would arrive) stops
     the run; its directory holds whole rounds, and resuming gives the results of the run never
     stopped."""
@@ -280,7 +293,7 @@ def test_ctrl_c_stops_a_run_with_whole_rounds_written_and_it_resumes(tmp_path: P
     assert without_wall(resumed) == without_wall(straight)
 
 
-def test_ctrl_c_while_rust_works_stops_after_the_round(tmp_path: Path):
+def test_ctrl_c_while_rust_works_stops_after_the_round(tmp_path: Path, python_sigint: None):
     """A Ctrl-C arriving while the analytic source and the physics run (the GIL released) stops
     the run after its round, checkpointed; resuming finishes it as if never stopped."""
     import _thread

@@ -295,7 +295,9 @@ def run(
     if pending:
         started = not ray.is_initialized()
         if started:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            # No address: a Ray of our own on this machine ("local"), never a cluster some
+            # earlier `ray start` left behind (Ray's default would join it).
+            ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
         try:
             task = ray.remote(num_cpus=1)(_run_cell)
             refs = {
