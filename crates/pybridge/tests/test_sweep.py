@@ -108,6 +108,49 @@ def test_bad_specs_are_config_errors_naming_the_field(spec: dict, field: str, tm
     assert not (tmp_path / "cells").exists()
 
 
+def test_a_train_sweep_runs_scenarios_whose_cells_merge(small_dataset, tmp_path: Path):
+    """``command = "train"``: each cell is the run directory ``run_scenario(out=…)`` writes
+    alone (metrics.json but wall times), the table reports the test accuracies, and the cells of
+    one setting merge (``lgdm.merge_runs``) into the run of all its seeds as trials."""
+    from test_cli import without_times
+
+    spec = tmp_path / "train.toml"
+    spec.write_text(
+        '[sweep]\ncommand = "train"\nseeds = [0, 1]\n\n'
+        f'[base]\ndataset = "{small_dataset.path}"\nscenario = "ni"\ntrials = 1\n\n'
+        "[grid]\nreplay = [true, false]\n"
+    )
+    out = tmp_path / "sweep"
+    # Its own process, as the command line runs it: Ray keeps state in the process that ran it.
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    rows = table(out / "table.csv")
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    table_ = lgdm.good_features(small_dataset)
+    for row in rows:
+        replay = row["replay"] == "true"
+        cell = json.loads((out / "cells" / row["cell"] / "metrics.json").read_text())
+        alone = lgdm.run_scenario(table_, "ni", trials=1, seed=int(row["seed"]), replay=replay)
+        assert without_times(cell) == without_times(alone)
+        assert float(row["test_category_accuracy_sm"]) == alone["summary"][
+            "test_category_accuracy_sm"
+        ]["mean"]
+    merged = lgdm.merge_runs(
+        [out / "cells" / "replay=true,seed=0", out / "cells" / "replay=true,seed=1"],
+        tmp_path / "merged",
+    )
+    both = lgdm.run_scenario(table_, "ni", trials=2, seed=0, replay=True)
+    assert without_times(merged) == without_times(both)
+    summary = table(out / "summary.csv")
+    assert {r["rate"] for r in summary} >= {"test_category_accuracy_sm"}
+    assert (out / "summary.png").stat().st_size > 0
+
+
 @pytest.fixture
 def two_node_cluster(monkeypatch: pytest.MonkeyPatch):
     """A Ray cluster of two nodes on this machine (one CPU each), as the README describes it."""
@@ -143,36 +186,3 @@ def test_a_two_node_cluster_gives_the_local_table(two_node_cluster: str, tmp_pat
     nodes = json.loads((cluster / "nodes.json").read_text())
     assert len(nodes) == 4 and len(set(nodes.values())) == 2, nodes
 
-
-def test_a_train_sweep_runs_scenarios_whose_cells_merge(small_dataset, tmp_path: Path):
-    """``command = "train"``: each cell is the run directory ``run_scenario(out=…)`` writes
-    alone (metrics.json but wall times), the table reports the test accuracies, and the cells of
-    one setting merge (``lgdm.merge_runs``) into the run of all its seeds as trials."""
-    from test_cli import without_times
-
-    spec = {
-        "sweep": {"command": "train", "seeds": [0, 1]},
-        "base": {"dataset": str(small_dataset.path), "scenario": "ni", "trials": 1},
-        "grid": {"replay": [True, False]},
-    }
-    out = tmp_path / "sweep"
-    rows = lgdm.sweep.run(spec, out=out)
-    assert [r["status"] for r in rows] == ["ok"] * 4
-    table_ = lgdm.good_features(small_dataset)
-    for row in rows:
-        replay = row["replay"] == "true"
-        cell = json.loads((out / "cells" / row["cell"] / "metrics.json").read_text())
-        alone = lgdm.run_scenario(table_, "ni", trials=1, seed=row["seed"], replay=replay)
-        assert without_times(cell) == without_times(alone)
-        assert float(row["test_category_accuracy_sm"]) == alone["summary"][
-            "test_category_accuracy_sm"
-        ]["mean"]
-    merged = lgdm.merge_runs(
-        [out / "cells" / "replay=true,seed=0", out / "cells" / "replay=true,seed=1"],
-        tmp_path / "merged",
-    )
-    both = lgdm.run_scenario(table_, "ni", trials=2, seed=0, replay=True)
-    assert without_times(merged) == without_times(both)
-    summary = table(out / "summary.csv")
-    assert {r["rate"] for r in summary} >= {"test_category_accuracy_sm"}
-    assert (out / "summary.png").stat().st_size > 0
