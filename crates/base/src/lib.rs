@@ -1,7 +1,8 @@
 //! The plumbing every lgdm crate shares, each piece in one place: atomic files, directory locks
 //! and the ownership policy of run directories ([`fs`]), seed derivation ([`seed`]), success
-//! rates with Wilson intervals ([`stats`]) and the progress reports long library calls give
-//! their callers ([`progress`]). A leaf: it depends on no other lgdm crate and on nothing heavy.
+//! rates with Wilson intervals ([`stats`]), the progress reports long library calls give
+//! their callers ([`progress`]) and the PNG charts of run directories ([`plot`]). A leaf: it
+//! depends on no other lgdm crate and on nothing heavy (plotters without its default backends).
 //!
 //! ```
 //! use lgdm_base::{fs, seed, stats::Rate};
@@ -15,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod fs;
+pub mod plot;
 pub mod progress;
 pub mod seed;
 pub mod stats;

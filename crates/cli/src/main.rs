@@ -9,7 +9,6 @@
 mod cmd;
 mod data;
 mod output;
-mod plot;
 mod progress;
 
 use clap::{Parser, Subcommand};

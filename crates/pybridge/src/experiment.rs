@@ -175,7 +175,7 @@ pub fn run_scenario(
         let metrics = experiment.metrics(records, encoder, dataset);
         return Ok((metrics.to_json(), models));
     };
-    // A run directory, as `lgdm train --out` (or `--resume`) leaves it, the plots aside.
+    // A run directory, as `lgdm train --out` (or `--resume`) leaves it, plots included.
     let provenance = Provenance {
         encoder: encoder.into(),
         dataset: dataset.into(),

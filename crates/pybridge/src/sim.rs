@@ -4,8 +4,8 @@
 //!
 //! Each call prepares the job (objects built or imported, colliders, the config checked),
 //! plays it with the GIL released and returns the results as `results.json`'s JSON text; with
-//! `out` it writes the same run directory (job record, config, per-round checkpoints, results)
-//! as the command line, the plots aside.
+//! `out` it writes the same run directory (job record, config, per-round checkpoints, results,
+//! plots) as the command line.
 //!
 //! A grasp source may be a Python callable ([`CallableSource`]): it is called with the robot's
 //! crop and returns its grasps in the decoders' convention (see `lgdm/sim.py`).

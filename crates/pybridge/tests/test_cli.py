@@ -179,9 +179,9 @@ def test_run_scenario_equals_the_cli_metrics(
 
 def test_run_directories_from_python_are_the_clis(cli, small_dataset, tmp_path):
     """``run_scenario(out=…)`` writes the run directory ``lgdm train --out`` writes (config.toml,
-    metrics.json but wall times, summary.txt's rows, the models); ``resume_scenario`` finishes a
-    run cut after its first trial to the same bytes; ``merge_runs`` of two one-trial runs is the
-    two-trial run, and ``lgdm merge`` and ``lgdm eval`` read what Python wrote."""
+    metrics.json but wall times, summary.txt's rows, the models, the plots); ``resume_scenario``
+    finishes a run cut after its first trial to the same bytes; ``merge_runs`` of two one-trial
+    runs is the two-trial run, and ``lgdm merge`` and ``lgdm eval`` read what Python wrote."""
     ds = small_dataset
     cache = tmp_path / "cache"
     cli_out = tmp_path / "cli"
@@ -201,6 +201,10 @@ def test_run_directories_from_python_are_the_clis(cli, small_dataset, tmp_path):
         assert (py_out / name).read_bytes() == (cli_out / name).read_bytes()
     rows = lambda d: (d / "summary.txt").read_text().splitlines()[:5]  # noqa: E731
     assert rows(py_out) == rows(cli_out)
+    pictures = sorted(p.name for p in cli_out.glob("*.png"))
+    assert len(pictures) == 4
+    for name in pictures:
+        assert (py_out / name).read_bytes() == (cli_out / name).read_bytes(), name
     # A run directory is not written over without force=True.
     with pytest.raises(lgdm.InputError, match="force"):
         lgdm.run_scenario(table, "ni", trials=2, seed=4, out=py_out)
@@ -222,6 +226,8 @@ def test_run_directories_from_python_are_the_clis(cli, small_dataset, tmp_path):
         lgdm.run_scenario(table, "ni", trials=1, seed=seed, out=out)
     merged = lgdm.merge_runs(one, tmp_path / "merged")
     assert without_times(merged) == without_times(metrics)
+    for name in pictures:
+        assert (tmp_path / "merged" / name).read_bytes() == (py_out / name).read_bytes(), name
     run(cli, "merge", *one, "--out", tmp_path / "cli-merged", cache=cache)
     assert without_times(json.loads((tmp_path / "cli-merged" / "metrics.json").read_text())) == (
         without_times(metrics)

@@ -197,6 +197,11 @@ def test_the_same_run_as_the_command_line(tmp_path: Path):
     cli_results = json.loads((tmp_path / "cli" / "results.json").read_text())
     assert without_wall(cli_results) == without_wall(r)
     assert (tmp_path / "cli" / "sim.toml").read_text() == (tmp_path / "py" / "sim.toml").read_text()
+    # The same pictures, drawn by the library for both.
+    pictures = sorted(p.name for p in (tmp_path / "cli").glob("*.png"))
+    assert pictures == ["failure_reasons.png", "success_by_category.png"]
+    for name in pictures:
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
 
 
 def counting_source(fail_at: int | None):
@@ -231,6 +236,8 @@ def test_a_pick_place_run_resumes_from_its_record(tmp_path: Path):
     (tmp_path / "a" / "results.json").unlink()
     resumed = lgdm.sim.resume(tmp_path / "a")
     assert without_wall(resumed) == without_wall(straight)
+    pictures = {p.name for p in (tmp_path / "a").glob("*.png")}
+    assert {"learning_curve.png", "nodes.png", "success_by_category.png"} <= pictures
 
 
 def test_a_python_view_encoder_recognises_in_the_loop(tmp_path: Path):

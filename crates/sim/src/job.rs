@@ -14,7 +14,7 @@
 //! [`PickPlaceJob::run`] then play the run and, given an [`Output`], write the run directory
 //! the binary writes: `results.json`, `summary.txt`, with recognition `model.lgdm` +
 //! `model.json` (which `--model`, `lgdm eval` and `lgdm.GDM.load` read), with recording
-//! `rounds/round-NNNN.{mcap,png}`. The binary adds only its plots.
+//! `rounds/round-NNNN.{mcap,png}`, and the plots ([`crate::plots`]).
 //!
 //! ```no_run
 //! use lgdm_sim::job::{Output, PickPlaceJob, PickPlaceSetup};

@@ -104,6 +104,7 @@ pub mod object_sets;
 pub mod observe;
 pub mod packing;
 pub mod perception;
+pub mod plots;
 pub mod recognize;
 pub mod record;
 pub mod report;

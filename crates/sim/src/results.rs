@@ -3,7 +3,7 @@
 //! fraction of objects cleared and the paper's contact-only success, each a [`Rate`] with its
 //! Wilson 95 % interval, per category and per failure reason; recognition, packing and
 //! arrival rates when the run had them) and [`RunResults`], everything `results.json` holds.
-//! Also the numbers behind the binary's plots ([`RunResults::learning_curve`]).
+//! Also the numbers behind the plots ([`RunResults::learning_curve`]).
 //!
 //! Everything is deterministic except the fields named `wall` (wall-clock seconds), which a
 //! comparison of two runs drops.

@@ -3,7 +3,7 @@
 //! policy of [`lgdm_base::fs::claim`]); locked while the run writes; every file written
 //! atomically. It holds [`RESULTS_FILE`], [`SUMMARY_FILE`], with recognition [`MODEL_FILE`] and
 //! [`MODEL_LABELS_FILE`], with recording [`ROUNDS_DIR`]`/round-NNNN.{mcap,png}`, and the
-//! binary's plots (`*.png`).
+//! plots (`*.png`, [`crate::plots`]).
 //!
 //! ```
 //! use lgdm_sim::run_dir::SimRunDir;
@@ -243,10 +243,12 @@ impl SimRunDir {
         Ok(())
     }
 
-    /// Writes [`RESULTS_FILE`] and [`SUMMARY_FILE`].
+    /// Writes [`RESULTS_FILE`], [`SUMMARY_FILE`] and the plots ([`crate::plots::write_plots`]).
     pub fn write_results(&self, results: &RunResults) -> Result<(), SimError> {
         self.write_file(RESULTS_FILE, results.to_json().as_bytes())?;
-        self.write_file(SUMMARY_FILE, summary_text(results).as_bytes())
+        self.write_file(SUMMARY_FILE, summary_text(results).as_bytes())?;
+        crate::plots::write_plots(&self.dir, results)?;
+        Ok(())
     }
 
     /// Writes the model `recognizer` holds: [`MODEL_FILE`] and [`MODEL_LABELS_FILE`], which

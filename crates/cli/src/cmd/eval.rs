@@ -207,7 +207,14 @@ pub fn run(args: Args) -> Result<()> {
     write_atomic(&out.join("confusion.csv"), csv.as_bytes())?;
     let n_cat = manifest.categories.len();
     let square: Vec<Vec<u64>> = e.confusion.iter().map(|r| r[..n_cat].to_vec()).collect();
-    crate::plot::write_confusion_png(&out.join("confusion.png"), &manifest.categories, &square)?;
+    let png = out.join("confusion.png");
+    lgdm_base::plot::heat_map(
+        &png,
+        "Category confusion (rows: true, columns: predicted)",
+        &manifest.categories,
+        &square,
+    )
+    .with_context(|| format!("writing {}", png.display()))?;
     write_atomic(
         &out.join("eval.json"),
         serde_json::to_string_pretty(&result)?.as_bytes(),

@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args as ClapArgs;
 use lgdm_gdm::experiment::report::summary_table;
 use lgdm_gdm::experiment::run_dir::merge_into;
@@ -46,7 +46,6 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     let out = &args.out;
-    crate::plot::write_run_plots(out, metrics).context("drawing the plots")?;
     if missing > 0 {
         errln!(
             "note: {missing} trial model(s) were not found next to their metrics.json and are not linked"

@@ -2,7 +2,7 @@
 //! ([`lgdm_sim::job`]: `sim grasp` → [`GraspJob`], `sim pick-place` and `sim packing` →
 //! [`PickPlaceJob`]), loads the grasp source and the view encoder it names (the autoencoder's
 //! from `lgdm_pybridge::ae::robot` in a build with the `ae` feature), runs it with a progress
-//! bar, draws the plots into the run directory the job wrote and prints its summary.
+//! bar and prints its summary.
 //!
 //! `lgdm sim grasp` plays rounds of a grasp scenario (isolated, packed, pile, scattered) with one
 //! grasp source (analytic, random, or network) → `results.json`, `summary.txt`,
@@ -40,9 +40,7 @@ use crate::progress::{ProgressMode, Reporter};
 
 mod args;
 mod objects;
-mod plots;
 pub use args::*;
-use plots::{write_learning_plots, write_packing_plots, write_plots};
 
 /// Runs `lgdm sim`.
 pub fn run(args: Args) -> Result<()> {
@@ -359,7 +357,6 @@ fn grasp(args: GraspArgs) -> Result<()> {
     task.finish();
     let results =
         results.map_err(|e| run_error(e, "sim grasp", &out, "running the grasp trials"))?;
-    write_plots(&out, &results).context("drawing the plots")?;
     let s = &results.summary;
     reporter.event(&serde_json::json!({
         "event": "done",
@@ -446,9 +443,6 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
     task.finish();
     let results =
         results.map_err(|e| run_error(e, command, &out, &format!("running {command}")))?;
-    write_plots(&out, &results).context("drawing the plots")?;
-    write_learning_plots(&out, &results).context("drawing the learning curve")?;
-    write_packing_plots(&out, &results).context("drawing the packing plots")?;
     let s = &results.summary;
     reporter.event(&serde_json::json!({
         "event": "done",

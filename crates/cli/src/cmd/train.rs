@@ -441,7 +441,6 @@ pub fn run(args: Args) -> Result<()> {
     task.finish();
     let metrics = metrics?;
     let out = run_dir.path();
-    crate::plot::write_run_plots(out, &metrics).context("drawing the plots")?;
     let table_text = summary_table(&metrics);
     outln!("{table_text}")?;
     outln!("run directory: {}", out.display())?;

@@ -51,6 +51,7 @@
 
 pub mod evaluation;
 pub mod plan;
+pub mod plots;
 pub mod records;
 pub mod report;
 pub mod run_dir;

@@ -4,8 +4,8 @@
 //! hyperparameters, written first), one checkpoint per trial, `model-trial<t>.lgdm`
 //! ([`model_file`]) and its record `trials/trial-<t>.json` ([`trial_file`]), each written the
 //! moment the trial ends (model first), and at the end `metrics.json` ([`RunMetrics`], format
-//! [`METRICS_FORMAT_VERSION`]). Front ends add their own renderings (`lgdm train` writes
-//! `summary.txt` and plots beside them). Every file is written atomically.
+//! [`METRICS_FORMAT_VERSION`]) with its renderings, `summary.txt` ([`super::report`]) and the
+//! plots ([`super::plots`]). Every file is written atomically.
 //!
 //! A [`RunDir`] owns its directory: it is created fresh (or an old run in it is removed first,
 //! when asked), and a lock file keeps a second process out while one writes. A run stopped part
@@ -421,9 +421,9 @@ impl RunDir {
 
     /// Plays the trials of `experiment` that `finished` has no record of (`jobs` at a time),
     /// each saved here as it ends — so a run stopped at any point resumes from its finished
-    /// trials — then writes `metrics.json` and `summary.txt` ([`super::report::summary_table`])
-    /// from all the trials' records: what `lgdm train` and `lgdm.run_scenario(out=…)` leave in a
-    /// run directory (the binary adds its plots). `finished` comes from
+    /// trials — then writes `metrics.json`, `summary.txt` ([`super::report::summary_table`])
+    /// and the plots ([`super::plots::write_run_plots`]) from all the trials' records: what
+    /// `lgdm train` and `lgdm.run_scenario(out=…)` leave in a run directory. `finished` comes from
     /// [`RunDir::finished_trials`] (all `None` for a new run).
     #[allow(clippy::too_many_arguments)]
     pub fn play(
@@ -454,6 +454,7 @@ impl RunDir {
             &self.dir.join(SUMMARY_FILE),
             super::report::summary_table(&metrics).as_bytes(),
         )?;
+        super::plots::write_run_plots(&self.dir, &metrics)?;
         Ok(metrics)
     }
 }
@@ -510,7 +511,7 @@ pub struct Merged {
 impl Merged {
     /// Writes the merged run into the run directory `out` (see [`RunDir::create`]):
     /// `config.toml`, each trial's model, hard-linked (copied where links fail) under its new
-    /// trial index, with its record, `metrics.json` and `summary.txt`. Returns how many source
+    /// trial index, with its record, `metrics.json`, `summary.txt` and the plots. Returns how many source
     /// models were missing (not linked). A source run may not be `out` itself.
     pub fn write(&self, out: &RunDir) -> Result<usize, ExperimentError> {
         out.write_config(&self.config)?;
@@ -535,6 +536,7 @@ impl Merged {
             &out.path().join(SUMMARY_FILE),
             super::report::summary_table(&self.metrics).as_bytes(),
         )?;
+        super::plots::write_run_plots(out.path(), &self.metrics)?;
         Ok(missing)
     }
 }

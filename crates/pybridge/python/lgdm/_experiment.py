@@ -89,7 +89,7 @@ def run_scenario(
 
     With ``out=`` the run writes a run directory as ``lgdm train --out`` does — ``config.toml``
     first, each trial's model and record as it finishes, then ``metrics.json`` and
-    ``summary.txt`` (the plots are the command line's own) — so an interrupted run is finished
+    ``summary.txt`` and the plots — so an interrupted run is finished
     by :func:`resume_scenario`, runs of other seeds merge with :func:`merge_runs` (or
     ``lgdm merge``), and ``lgdm eval`` reads its models. ``force=True`` replaces a run already
     there, as ``--force``.

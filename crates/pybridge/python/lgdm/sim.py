@@ -5,8 +5,8 @@ Each call plays the run in Rust (the ``lgdm-sim`` library the binary runs; the G
 and returns its results as ``results.json`` holds them: ``result["summary"]`` (the rates, each
 with its Wilson interval), ``result["attempts"]`` (one dict per attempt), ``result["rounds"]``,
 ``result["config"]`` and the wall times. With ``out=`` it writes the same run directory as the
-command line (job record, ``sim.toml``, per-round checkpoints, ``results.json``; the plots are
-the command line's own).
+command line (job record, ``sim.toml``, per-round checkpoints, ``results.json``,
+``summary.txt`` and the plots).
 
 **Grasp sources.** ``grasp`` is ``"analytic"`` (default), ``"random"``, or a callable that
 proposes grasps — how you try your own network on the robot. It is called once per look at an
