@@ -389,6 +389,22 @@ fn bad_input_is_a_clear_error_and_writes_nothing() {
     let out = dir.join("bad");
     assert_fails(sim(&out, &["--rounds", "0"]), &["--rounds 0"]);
     assert!(!out.exists());
+    // grasp-data's settings are named as its options.
+    let data = |args: &[&str]| {
+        lgdm(&work_dir().join("cache"))
+            .args(["sim", "grasp-data", "--progress", "none", "--out"])
+            .arg(&out)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    assert_fails(data(&["--scenes", "0"]), &["--scenes 0"]);
+    assert_fails(data(&["--scenes", "5000"]), &["--scenes 5000", "at most"]);
+    assert_fails(
+        data(&["--scenes", "1", "--analytic", "0", "--random", "0"]),
+        &["--analytic 0"],
+    );
+    assert!(!out.exists());
     assert_fails(
         sim(&out, &["--scenario", "heap"]),
         &["heap", "isolated, packed, pile"],

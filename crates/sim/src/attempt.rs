@@ -40,7 +40,7 @@ use rapier3d::parry::query::Ray;
 use serde::{Deserialize, Serialize};
 
 use crate::arm::Joints;
-use crate::gripper::{Contactee, GripperPart};
+use crate::gripper::{Contactee, GripReading, Gripper, GripperConfig, GripperPart};
 use crate::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
 use crate::perception::{ObjectView, WorldGrasp};
 use crate::robot::{Robot, RobotConfig, RobotError};
@@ -483,10 +483,26 @@ pub fn plan_grasp(
     grasp: &WorldGrasp,
     config: &AttemptConfig,
 ) -> GraspPlan {
-    let g = cell.robot.gripper().config();
+    plan_grasp_for(
+        cell.robot.gripper().config(),
+        cell.table_top_m(),
+        view,
+        grasp,
+        config,
+    )
+}
+
+/// [`plan_grasp`] for gripper `g` over a table whose top is at `top` (m): what it needs of the
+/// cell, so a gripper without an arm ([`crate::free_grasp`]) plans the same way.
+pub fn plan_grasp_for(
+    g: &GripperConfig,
+    top: f64,
+    view: &ObjectView,
+    grasp: &WorldGrasp,
+    config: &AttemptConfig,
+) -> GraspPlan {
     let stroke = f64::from(g.stroke_m);
     let opening = (grasp.opening_m + config.opening_margin_m).clamp(0.0, stroke);
-    let top = cell.table_top_m();
     let thickness = f64::from(g.finger_thickness_m);
     let half_width = 0.5 * f64::from(g.finger_width_m);
     let palm_half_len = f64::from(g.palm_half_length_m());
@@ -638,7 +654,7 @@ fn follow(
             let t = (f64::from(k) * dt).min(duration);
             cell.robot.step_to(&mut cell.world, trajectory, t)?;
             arm_collision |= !cell.robot.arm_touches(&cell.world).is_empty();
-            if guarded && touches_for_real(cell) {
+            if guarded && touches_for_real(&cell.world, cell.robot.gripper()) {
                 return Ok(Motion {
                     stopped_by_contact: true,
                     arm_collision,
@@ -786,10 +802,9 @@ const TOUCH_DISTANCE_M: f32 = 0.001;
 /// fingertip passing 4 mm beside a can's shoulder got a contact 0.5 mm "below" its tip plane
 /// with a vertical normal and a 12 N push, so the descent stopped 3 cm early. Each pushing pair
 /// is therefore checked with parry's exact distance between the two colliders.
-fn touches_for_real(cell: &Cell) -> bool {
-    let world = &cell.world;
+pub(crate) fn touches_for_real(world: &World, gripper: &Gripper) -> bool {
     let physics = &world.physics;
-    for (_, part) in cell.robot.gripper().part_colliders() {
+    for (_, part) in gripper.part_colliders() {
         for pair in physics.narrow_phase.contact_pairs_with(part) {
             if !(pair.has_any_active_contact() && pair.total_impulse_magnitude() > 0.0) {
                 continue;
@@ -812,8 +827,8 @@ fn touches_for_real(cell: &Cell) -> bool {
 }
 
 /// Objects both of whose fingers push on them now, sorted.
-fn pinched_objects(cell: &Cell) -> Vec<ObjectHandle> {
-    let touches = cell.robot.gripper().touches(&cell.world);
+pub(crate) fn pinched_objects(world: &World, gripper: &Gripper) -> Vec<ObjectHandle> {
+    let touches = gripper.touches(world);
     let mut by_finger: [Vec<ObjectHandle>; 2] = [Vec::new(), Vec::new()];
     for t in &touches {
         if let Contactee::Object(h) = t.other {
@@ -835,11 +850,9 @@ fn pinched_objects(cell: &Cell) -> Vec<ObjectHandle> {
 }
 
 /// Objects either finger (or the palm) touches now, sorted.
-fn touching_objects(cell: &Cell) -> Vec<ObjectHandle> {
-    let mut out: Vec<ObjectHandle> = cell
-        .robot
-        .gripper()
-        .touches(&cell.world)
+pub(crate) fn touching_objects(world: &World, gripper: &Gripper) -> Vec<ObjectHandle> {
+    let mut out: Vec<ObjectHandle> = gripper
+        .touches(world)
         .iter()
         .filter(|t| t.part != GripperPart::Palm)
         .filter_map(|t| match t.other {
@@ -934,6 +947,32 @@ pub fn execute(
             Ok(attempt.out)
         }
         Err(Stop::Error(e)) => Err(e),
+    }
+}
+
+/// The grasp criterion after the hold (see the module docs): the judged object's centre of mass
+/// stayed at least [`AttemptConfig::success_rise_m`] up (`min_rise`), both pads still push on it
+/// (`reading`) and the gap between them is no narrower than its `width` between the pads, less
+/// [`AttemptConfig::width_tolerance_m`]. A failure is `missed` (or `collision_on_approach`)
+/// unless the pads pinched it after closing, then `slipped_during_lift`. One home for the arm's
+/// attempts and the free gripper's ([`crate::free_grasp`]).
+pub(crate) fn grasp_verdict(
+    min_rise: f32,
+    reading: &GripReading,
+    width: Option<f32>,
+    pinched_after_close: bool,
+    collided: bool,
+    config: &AttemptConfig,
+) -> Result<(), FailureReason> {
+    let wide_enough = width.is_none_or(|w| reading.gap_m >= w - config.width_tolerance_m);
+    if min_rise >= config.success_rise_m && reading.pinching() && wide_enough {
+        Ok(())
+    } else if pinched_after_close {
+        Err(FailureReason::SlippedDuringLift)
+    } else if collided {
+        Err(FailureReason::CollisionOnApproach)
+    } else {
+        Err(FailureReason::Missed)
     }
 }
 
@@ -1055,7 +1094,7 @@ impl Attempt<'_> {
         let gap = cell.robot.gripper().finger_gap_m(&cell.world);
         self.out.measured.gap_after_close_m = Some(gap);
         let closed_gap = cell.robot.gripper().config().closed_gap_m;
-        let pinched = pinched_objects(cell);
+        let pinched = pinched_objects(&cell.world, cell.robot.gripper());
         self.out.measured.pinched_after_close = pinched.len() == 1 && gap >= closed_gap;
         let judged = if pinched.len() == 1 {
             Some(pinched[0])
@@ -1078,7 +1117,7 @@ impl Attempt<'_> {
             return Err(Stop::Failed(FailureReason::Unreachable));
         };
         follow(self.cell, &lift, false, self.wall)?;
-        let touching = touching_objects(self.cell);
+        let touching = touching_objects(&self.cell.world, self.cell.robot.gripper());
         self.out.measured.objects_touching_after_lift = touching.len();
         self.out.contact_only_success = touching.len() == 1;
         Ok(())
@@ -1121,16 +1160,16 @@ impl Attempt<'_> {
         out.measured.gap_after_hold_m = Some(reading.gap_m);
         let width = width_between_pads_m(&cell.world, cell.robot.gripper(), object)?;
         out.measured.width_between_pads_m = width;
-        let wide_enough = width.is_none_or(|w| reading.gap_m >= w - config.width_tolerance_m);
-        out.grasp_success = min_rise >= config.success_rise_m && reading.pinching() && wide_enough;
-        if !out.grasp_success {
-            let reason = if !out.measured.pinched_after_close {
-                missed
-            } else {
-                FailureReason::SlippedDuringLift
-            };
-            return Err(Stop::Failed(reason));
-        }
+        let verdict = grasp_verdict(
+            min_rise,
+            &reading,
+            width,
+            out.measured.pinched_after_close,
+            collided,
+            config,
+        );
+        out.grasp_success = verdict.is_ok();
+        verdict.map_err(Stop::Failed)?;
         Ok(object)
     }
 

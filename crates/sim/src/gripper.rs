@@ -426,6 +426,17 @@ impl Gripper {
         })
     }
 
+    /// Takes the gripper out of `world`: the palm and both fingers, with their colliders and
+    /// joints (a free gripper's trial ends so: [`crate::free_grasp`]).
+    pub fn remove(self, world: &mut World) {
+        for finger in self.fingers {
+            world.physics.remove_body_with_colliders(finger.body, true);
+        }
+        world
+            .physics
+            .remove_body_with_colliders(self.palm_body, true);
+    }
+
     /// The palm body and the finger bodies (finger 0 on −x, finger 1 on +x), for the recorder.
     pub(crate) fn bodies(&self) -> (RigidBodyHandle, [RigidBodyHandle; 2]) {
         (self.palm_body, self.fingers.map(|f| f.body))

@@ -95,6 +95,8 @@ pub mod attempt;
 pub mod camera;
 pub mod captions;
 pub mod config;
+pub mod free_grasp;
+pub mod grasp_data;
 pub mod gripper;
 pub mod hull;
 pub mod ik;

@@ -91,6 +91,11 @@ pub fn summary_table(r: &RunResults) -> String {
         "\nfailure reasons: {}",
         failure_list(&s.failure_reasons)
     );
+    let _ = writeln!(
+        out,
+        "grasp proposals refused before a try (a pad would close on air): {} of {} planned",
+        s.proposals.refused, s.proposals.planned
+    );
     let w = &r.wall;
     let a = &w.attempts;
     let pct = |x: f64| {

@@ -104,6 +104,10 @@ pub struct AttemptRecord {
     pub packing: Option<PackingRecord>,
     /// Measurements.
     pub measured: Measurements,
+    /// The source's proposals planned to choose this attempt's grasp, and those the contact
+    /// check refused.
+    #[serde(default)]
+    pub proposals: Proposals,
     /// Simulated seconds the attempt took (including parking the arm after it).
     pub sim_time_s: f64,
     /// Wall-clock seconds (not deterministic). The rendering, perception and grasp-source time
@@ -183,6 +187,9 @@ pub struct Summary {
     pub per_category: BTreeMap<String, CategorySummary>,
     /// Failed attempts per reason (every reason listed).
     pub failure_reasons: BTreeMap<String, usize>,
+    /// Every attempt's [`AttemptRecord::proposals`], summed.
+    #[serde(default)]
+    pub proposals: Proposals,
     /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
     /// (one per object per round: the first attempt at it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -210,6 +217,25 @@ pub struct Summary {
     /// ([`ArrivalEvaluation::at_switch`]): the baseline of the forgetting.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub early_category_accuracy_at_switch: Option<Rate>,
+}
+
+/// Grasp proposals planned, and those refused before they were tried because a pad would
+/// close on air ([`crate::attempt::GraspPlan::reaches_contacts`]; every source's proposals are
+/// checked). Isolated rounds plan a look's ranked grasps together (counted in its first
+/// attempt); cluttered ones plan best first, as far as the grasp tried.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Proposals {
+    /// Proposals planned.
+    pub planned: usize,
+    /// Of those, refused.
+    pub refused: usize,
+}
+
+impl Proposals {
+    /// Refused / planned.
+    pub fn refused_rate(&self) -> Rate {
+        Rate::new(self.refused, self.planned)
+    }
 }
 
 /// Summarises attempts and rounds; `packing`: the run is a packing run (its summary then holds
@@ -280,6 +306,10 @@ pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bo
         contact_only_success_rate: Rate::new(count(&|a| a.contact_only_success, &all), n),
         per_category,
         failure_reasons,
+        proposals: Proposals {
+            planned: attempts.iter().map(|a| a.proposals.planned).sum(),
+            refused: attempts.iter().map(|a| a.proposals.refused).sum(),
+        },
         packing: packing.then(|| {
             let packed: Vec<(Option<&str>, &PackingRecord)> = attempts
                 .iter()
@@ -510,6 +540,7 @@ mod tests {
             reason: (!placed).then_some(FailureReason::Missed),
             recognition,
             packing: None,
+            proposals: Proposals::default(),
             measured: Measurements::default(),
             sim_time_s: 1.0,
             wall: WallTimes::default(),

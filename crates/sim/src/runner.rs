@@ -54,12 +54,12 @@ use crate::packing::BasketChoice;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
 use crate::recognize::{MemoryPoint, RecognitionRecord, Recognizer, RecognizerState};
 use crate::results::{
-    AttemptRecord, GraspRecord, PoseRecord, RESULTS_FORMAT_VERSION, RecognitionRun, RoundEnd,
-    RoundRecord, RunInfo, RunResults, RunWall, summarize,
+    AttemptRecord, GraspRecord, PoseRecord, Proposals, RESULTS_FORMAT_VERSION, RecognitionRun,
+    RoundEnd, RoundRecord, RunInfo, RunResults, RunWall, summarize,
 };
 use crate::scenario::{PlacedObject, Scenario, on_table, round_objects_among, set_table};
 use crate::shapes::LibraryShapes;
-use crate::source::{GraspQuery, GraspSource};
+use crate::source::{GraspQuery, GraspSource, SourceError};
 use crate::spec::{RunSpec, SimError, TAG_ROUND};
 use crate::timing::{WallTimes, Work};
 use crate::world::{ObjectHandle, World};
@@ -194,6 +194,7 @@ struct AttemptClock {
     start: Instant,
     sim_start_s: f64,
     wall: WallTimes,
+    proposals: Proposals,
 }
 
 impl AttemptClock {
@@ -202,6 +203,7 @@ impl AttemptClock {
             start: Instant::now(),
             sim_start_s: world.time_s(),
             wall: WallTimes::default(),
+            proposals: Proposals::default(),
         }
     }
 }
@@ -368,32 +370,12 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         clock: &mut AttemptClock,
     ) -> Result<Vec<Candidate>, SimError> {
         let k = self.spec.config.scenario.ranked_grasps;
-        let query = GraspQuery {
-            crop: &view.crop,
-            intrinsics: &view.shot.camera.intrinsics,
-            gripper: &self.gripper,
-        };
         let source = &mut *self.source;
-        let mut grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
-        // Nothing for the full stroke: plan again for narrower openings (the attempt opens the
-        // fingers to the grasp's width plus a margin, not to the stroke).
-        for &opening in &self.spec.config.attempt.fallback_openings_m {
-            if !grasps.is_empty() {
-                break;
-            }
-            if opening >= self.gripper.max_opening_m {
-                continue;
-            }
-            let narrower = GraspSpec {
-                max_opening_m: opening,
-                ..self.gripper
-            };
-            let query = GraspQuery {
-                gripper: &narrower,
-                ..query
-            };
-            grasps = clock.wall.time(Work::Source, || source.grasps(&query, k))?;
-        }
+        let fallbacks = &self.spec.config.attempt.fallback_openings_m;
+        let gripper = &self.gripper;
+        let grasps = clock.wall.time(Work::Source, || {
+            ranked_grasps(source, view, gripper, k, fallbacks)
+        })?;
         let decode = &self.spec.config.attempt.decode;
         Ok(clock.wall.time(Work::Perception, || {
             grasps
@@ -423,9 +405,12 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         clock: &mut AttemptClock,
     ) -> bool {
         let attempt = &self.spec.config.attempt;
-        clock.wall.time(Work::Planning, || {
+        let reaches = clock.wall.time(Work::Planning, || {
             plan_grasp(cell, view, &candidate.world, attempt).reaches_contacts(attempt)
-        })
+        });
+        clock.proposals.planned += 1;
+        clock.proposals.refused += usize::from(!reaches);
+        reaches
     }
 
     /// Adds the record of an attempt at `target` (the object aimed at) that tried `grasp`.
@@ -483,6 +468,7 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             recognition: decision.recognition,
             packing,
             measured: exec.measured,
+            proposals: clock.proposals,
             sim_time_s: cell.world.time_s() - clock.sim_start_s,
             wall: clock.wall,
         });
@@ -1093,6 +1079,45 @@ pub(crate) fn play(
         recognition,
         arrival_evaluation,
     })
+}
+
+/// `source`'s `k` best grasps on `view` for `gripper`; when it finds none for the full stroke,
+/// it is asked again for each narrower opening of `fallback_openings_m` in turn (an attempt
+/// opens the fingers to the grasp's width plus a margin, not to the stroke). The robot's and
+/// `lgdm sim grasp-data`'s one way to ask a source.
+pub fn ranked_grasps(
+    source: &mut dyn GraspSource,
+    view: &ObjectView,
+    gripper: &GraspSpec,
+    k: usize,
+    fallback_openings_m: &[f32],
+) -> Result<Vec<DecodedGrasp>, SourceError> {
+    let query = GraspQuery {
+        crop: &view.crop,
+        intrinsics: &view.shot.camera.intrinsics,
+        gripper,
+    };
+    let mut grasps = source.grasps(&query, k)?;
+    for &opening in fallback_openings_m {
+        if !grasps.is_empty() {
+            break;
+        }
+        if opening >= gripper.max_opening_m {
+            continue;
+        }
+        let narrower = GraspSpec {
+            max_opening_m: opening,
+            ..*gripper
+        };
+        grasps = source.grasps(
+            &GraspQuery {
+                gripper: &narrower,
+                ..query
+            },
+            k,
+        )?;
+    }
+    Ok(grasps)
 }
 
 /// The library indices of round `round`'s objects: drawn from the whole library, or from the

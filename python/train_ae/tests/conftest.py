@@ -8,6 +8,7 @@ each other are several times slower than one."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -33,6 +34,7 @@ def lgdm_dir(tmp_path_factory):
                                    images_per_object=3, seed=0, layout="lgdm", categories=2)
 
 
+REPO = Path(__file__).resolve().parents[3]
 WILSON_FIXTURE = Path(__file__).resolve().parents[3] / "tests" / "fixtures" / "wilson.json"
 
 
@@ -56,3 +58,20 @@ def wilson_case(cases: list[dict], successes: int, trials: int) -> tuple[float, 
         if (c["successes"], c["trials"]) == (successes, trials):
             return c["low"], c["high"]
     pytest.fail(f"{WILSON_FIXTURE} has no entry for {successes}/{trials}", pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def lgdm_binary() -> Path:
+    """The lgdm binary: ``LGDM_BIN``, else ``<repo>/target/release/lgdm``. Without one the test is
+    skipped; a ``LGDM_BIN`` that does not exist is a failure."""
+    env = os.environ.get("LGDM_BIN")
+    if env:
+        path = Path(env)
+        if not path.is_file():
+            pytest.fail(f"LGDM_BIN={env} does not exist", pytrace=False)
+        return path
+    path = REPO / "target" / "release" / "lgdm"
+    if not path.is_file():
+        pytest.skip(f"no lgdm binary: {path} does not exist and LGDM_BIN is not set "
+                    f"(cargo build --release)")
+    return path

@@ -11,7 +11,6 @@ no binary.
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 from pathlib import Path
 
@@ -35,23 +34,9 @@ MIN_IMAGES = 40
 MIN_ACCURACY = 0.99
 
 
-def _lgdm_binary() -> Path:
-    env = os.environ.get("LGDM_BIN")
-    if env:
-        path = Path(env)
-        if not path.is_file():
-            pytest.fail(f"LGDM_BIN={env} does not exist", pytrace=False)
-        return path
-    path = REPO / "target" / "release" / "lgdm"
-    if not path.is_file():
-        pytest.skip(f"no lgdm binary: {path} does not exist and LGDM_BIN is not set "
-                    f"(cargo build --release)")
-    return path
-
-
 @pytest.fixture(scope="module")
-def lgdm_grasp_dir(tmp_path_factory) -> Path:
-    binary = _lgdm_binary()
+def lgdm_grasp_dir(tmp_path_factory, lgdm_binary) -> Path:
+    binary = lgdm_binary
     out = tmp_path_factory.mktemp("ceiling") / "ds"
     cmd = [str(binary), "gen-dataset", "--preset", "small", "--frames", "1", "--grasp-images",
            "60", "--seed", "0", "--out", str(out), "--progress", "none"]

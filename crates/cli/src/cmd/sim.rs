@@ -39,6 +39,7 @@ use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
 mod args;
+mod grasp_data;
 mod objects;
 pub use args::*;
 
@@ -49,6 +50,7 @@ pub fn run(args: Args) -> Result<()> {
         SimCommand::PickPlace(args) => recognition_run(args, None),
         SimCommand::Packing(args) => recognition_run(args.run, Some(args.targets)),
         SimCommand::Objects(args) => objects::run(args),
+        SimCommand::GraspData(args) => grasp_data::run(args),
     }
 }
 
@@ -160,11 +162,19 @@ fn ae_view_encoder(
 
 /// The objects of `--meshes` (with `--units`), else the procedural ones.
 fn objects(args: &RobotArgs, procedural: ObjectSource) -> Result<ObjectSource> {
-    let Some(dir) = &args.meshes else {
+    mesh_objects(args.meshes.as_ref(), &args.units, procedural)
+}
+
+/// The objects of `meshes` (with `units`), else `procedural`.
+fn mesh_objects(
+    meshes: Option<&std::path::PathBuf>,
+    units: &[String],
+    procedural: ObjectSource,
+) -> Result<ObjectSource> {
+    let Some(dir) = meshes else {
         return Ok(procedural);
     };
-    let units =
-        MeshUnits::parse(&args.units).map_err(|reason| anyhow::anyhow!("--units: {reason}"))?;
+    let units = MeshUnits::parse(units).map_err(|reason| anyhow::anyhow!("--units: {reason}"))?;
     Ok(ObjectSource::Meshes {
         dir: dir.clone(),
         units,
@@ -190,7 +200,21 @@ fn report_meshes(library: &ObjectLibrary, reporter: &Reporter) {
 /// The run's constants: `--config`'s file (else the defaults), with what the options set — the
 /// gripper, the cameras' drawing, the colliders — on top. Checked whole, naming the field.
 fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
-    if let (Some(config), Some(out)) = (&args.config, &args.out)
+    let overrides = ConfigOverrides {
+        gripper: args.gripper,
+        draw: args.draw,
+        shapes: args.shapes,
+    };
+    resolve_config(args.config.as_deref(), args.out.as_deref(), &overrides)
+}
+
+/// `config` (else the defaults) with `overrides` on top, refused inside `out`.
+fn resolve_config(
+    config: Option<&Path>,
+    out: Option<&Path>,
+    overrides: &ConfigOverrides,
+) -> Result<SimConfig> {
+    if let (Some(config), Some(out)) = (config, out)
         && let (Ok(config), Ok(out)) = (config.canonicalize(), out.canonicalize())
         && config.starts_with(&out)
     {
@@ -201,13 +225,7 @@ fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
             out.display()
         );
     }
-    let overrides = ConfigOverrides {
-        gripper: args.gripper,
-        draw: args.draw,
-        shapes: args.shapes,
-    };
-    SimConfig::resolve(args.config.as_deref(), &overrides)
-        .map_err(|e| anyhow::anyhow!("--config {e}"))
+    SimConfig::resolve(config, overrides).map_err(|e| anyhow::anyhow!("--config {e}"))
 }
 
 /// `--record` / `--record-rounds`.

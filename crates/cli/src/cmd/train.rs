@@ -306,7 +306,7 @@ fn default_run_dir(scenario: Scenario) -> PathBuf {
 }
 
 /// `--jobs`, or the number of cores.
-fn jobs(requested: Option<usize>) -> Result<usize> {
+pub(crate) fn jobs(requested: Option<usize>) -> Result<usize> {
     match requested {
         Some(0) => bail!("--jobs must be at least 1"),
         Some(n) => Ok(n),

@@ -309,6 +309,42 @@ pub struct GraspImageInfo {
     pub positives: usize,
     /// Number of negative rectangles.
     pub negatives: usize,
+    /// Labels from physics (`lgdm sim grasp-data`): the scene the image is of and the outcome
+    /// of each rectangle, tried in simulation. `None` for the geometric labels of
+    /// `gen-dataset` (the key is then absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physics: Option<PhysicsLabels>,
+}
+
+/// How an image's rectangles were labelled by physics: the scene and one [`GraspOutcome`] per
+/// rectangle, in the order of `cpos.txt` (successes) and `cneg.txt` (failures).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PhysicsLabels {
+    /// The scene's number in the set.
+    pub scene: usize,
+    /// Its table (`isolated`, `packed`, `pile`, `scattered`).
+    pub scenario: String,
+    /// The objects on the table (instance names), the imaged one among them.
+    pub objects: Vec<String>,
+    /// The outcomes of the positive rectangles.
+    pub positives: Vec<GraspOutcome>,
+    /// The outcomes of the negative rectangles.
+    pub negatives: Vec<GraspOutcome>,
+}
+
+/// What happened when one rectangle was tried.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GraspOutcome {
+    /// The grasp source that proposed it (`analytic`, `random`).
+    pub source: String,
+    /// Its rank among that source's proposals (0 = best).
+    pub rank: usize,
+    /// The grasp held.
+    pub success: bool,
+    /// Why not (`missed`, `slipped_during_lift`, `collision_on_approach`).
+    pub reason: Option<String>,
+    /// The robot's planner would try it: both pads reach a surface as they close.
+    pub reaches_contacts: bool,
 }
 
 /// What [`export_cornell`] writes.
@@ -464,6 +500,7 @@ fn write_grasp_image(
         window,
         positives: pos.len(),
         negatives: neg.len(),
+        physics: None,
     })
 }
 

