@@ -3,6 +3,8 @@ weights_only=True; the CLIs run end to end; the bridge functions keep their cont
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 import torch
@@ -300,3 +302,58 @@ def test_bridge_preprocess_resizes_crops_like_training(lgdm_dir):
                                   bridge.preprocess(rgb, depth))
     with pytest.raises(ValueError, match="square"):
         bridge.preprocess(rgb[:200], depth[:200], 112)
+
+
+def test_several_directories_train_as_one_set(lgdm_dir, fixture_dir, tmp_path, capsys):
+    """Object names are shared across --data directories: a name held out is held out of all
+    of them; directories made for different jaws are refused."""
+    second = write_synthetic_dataset(tmp_path / "second", objects=4, images_per_object=2,
+                                     seed=3, layout="lgdm", categories=2)
+    out = tmp_path / "mixed.pt"
+    argv = ["--data", str(lgdm_dir), str(second), "--config", "cpu", "--epochs", "1",
+            "--out", str(out), "--batch-size", "4", "--threads", "1", "--quiet"]
+    assert train_cli.main(argv) == 0
+    assert "held out (per-category): 10 images of 2 objects" in capsys.readouterr().err
+    _, ckpt = load_checkpoint(out)
+    t = ckpt["metrics"]["training"]
+    assert t["data"] == [str(lgdm_dir), str(second)] and t["train_images"] == 10
+    assert t["init"] is None
+    held = set(ckpt["metrics"]["heldout"]["objects"])
+    for root in (lgdm_dir, second):
+        names = {s.object_id for s in find_samples(root)}
+        assert held <= names and names - held
+    # A Cornell directory (opening / 2 jaws) does not mix with lgdm crops (finger jaws).
+    assert train_cli.main([*argv[:3], str(fixture_dir), *argv[4:]]) == 2
+    assert "jaw_side_fraction" in capsys.readouterr().err
+    assert train_cli.main([*argv[:3], str(lgdm_dir), *argv[4:]]) == 2
+    assert "given twice" in capsys.readouterr().err
+
+
+def test_init_starts_from_a_checkpoint(lgdm_dir, tmp_path, capsys):
+    start = tmp_path / "start.pt"
+    base = ["--data", str(lgdm_dir), "--config", "cpu", "--epochs", "1", "--batch-size", "4",
+            "--threads", "1", "--quiet"]
+    assert train_cli.main([*base, "--out", str(start), "--seed", "5"]) == 0
+    tuned = tmp_path / "tuned.pt"
+    # A step of lr 1e-12 leaves the weights where --init put them, not at the seeded start.
+    assert train_cli.main([*base, "--out", str(tuned), "--init", str(start), "--lr", "1e-12"]) == 0
+    assert f"starting from {start}" in capsys.readouterr().err
+    # (the parameters: batch-norm statistics move with any step)
+    a, b = (dict(load_checkpoint(p)[0].named_parameters()) for p in (start, tuned))
+    weights = list(a)
+    assert all(torch.allclose(a[k], b[k], atol=1e-6) for k in weights)
+    fresh = tmp_path / "fresh.pt"
+    assert train_cli.main([*base, "--out", str(fresh), "--lr", "1e-12"]) == 0
+    c = dict(load_checkpoint(fresh)[0].named_parameters())
+    assert not all(torch.allclose(a[k], c[k], atol=1e-6) for k in weights)
+    init = load_checkpoint(tuned)[1]["metrics"]["training"]["init"]
+    assert init["file"] == "start.pt"
+    assert init["sha256"] == hashlib.sha256(start.read_bytes()).hexdigest()
+    # Another architecture, or no checkpoint at all, is a clear error.
+    tiny = ModelConfig(name="tiny", input_size=48, channels=8, encoder_res_blocks=1,
+                       bottleneck_res_blocks=1)
+    save_checkpoint(tmp_path / "tiny.pt", GraspAutoencoder(tiny), {})
+    assert train_cli.main([*base, "--out", str(tuned), "--init", str(tmp_path / "tiny.pt")]) == 2
+    assert "is a 'tiny' network, not --config cpu" in capsys.readouterr().err
+    assert train_cli.main([*base, "--out", str(tuned), "--init", str(tmp_path / "no.pt")]) == 2
+    assert "does not exist" in capsys.readouterr().err

@@ -277,6 +277,36 @@ def find_samples(root: str | Path, object_map: dict[str, str] | None = None) -> 
     return samples
 
 
+def find_samples_in(roots: list[Path], object_map: dict[str, str] | None = None
+                    ) -> tuple[list[Sample], float | None]:
+    """(samples, jaw_side_fraction) of several dataset directories, in the order given.
+
+    An object keeps its name across directories, so a name held out is held out of every
+    directory (``gen-dataset`` and ``lgdm sim grasp-data`` of one generator seed name the same
+    object alike; of another seed, a same-named object is a different one, held out with it).
+    The directories must agree on the jaw (``index.json``'s ``jaw_side_fraction``): decoded
+    grasps and rectangles would otherwise mean different widths.
+    """
+    if not roots:
+        raise DatasetError("no dataset directory given")
+    if len(set(roots)) != len(roots):
+        raise DatasetError(f"a dataset directory is given twice: {[str(r) for r in roots]}")
+    samples: list[Sample] = []
+    jaw: tuple[Path, float | None] | None = None
+    for root in roots:
+        samples.extend(find_samples(root, object_map))
+        index = read_grasp_index(root)
+        this = index.jaw_side_fraction if index is not None else None
+        if jaw is None:
+            jaw = (root, this)
+        elif (this is None) != (jaw[1] is None) or (
+                this is not None and abs(this - jaw[1]) > 1e-6 * this):
+            raise DatasetError(f"{root} decodes jaws with jaw_side_fraction {this}, {jaw[0]} "
+                               f"with {jaw[1]}: the directories were made for different "
+                               f"fingers or crops")
+    return samples, jaw[1]
+
+
 def read_rectangles(path: str | Path) -> tuple[list[GraspRectangle], int]:
     """Rectangles of a Cornell ``cpos``/``cneg`` file and the number skipped for NaNs."""
     path = Path(path)

@@ -1,9 +1,10 @@
 """Train the grasp autoencoder on a Cornell-layout directory and evaluate it on held-out objects.
 
-    python -m train_ae.train --data DIR --config cpu --epochs N --out CKPT
-        [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop] [--loss weighted|paper]
-        [--pos-weight 10] [--seed 0] [--holdout per-category|fraction] [--per-category 1]
-        [--val-fraction 0.1] [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
+    python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
+        [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
+        [--loss weighted|paper] [--pos-weight 10]
+        [--seed 0] [--holdout per-category|fraction] [--per-category 1] [--val-fraction 0.1]
+        [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
 
 Whole objects are held out: by default one instance per category (``--holdout per-category``,
 when the lgdm ``index.json`` gives categories), else a seeded ``--val-fraction`` of all objects
@@ -15,25 +16,31 @@ without one, as opening / 2. Nothing on the held-out objects chooses an epoch or
 Defaults depart from the paper (RMSprop, plain smooth-L1 sum: ``--optimizer rmsprop --loss
 paper``): Adam and a loss weighting positive pixels ×10 (see ``train_ae.training``).
 
-Same seed and thread count -> same checkpoint bytes.
+Several ``--data`` directories train as one set (e.g. ``gen-dataset``'s geometric labels and
+``lgdm sim grasp-data``'s physics labels): an object name held out is held out of every one.
+``--init CKPT`` starts from a checkpoint's weights (its configuration must be ``--config``'s)
+instead of a seeded initialisation: a fine-tune; the checkpoint's file name and sha256 are
+recorded in the new one's metrics.
+
+Same seed and thread count (and ``--init`` file) -> same checkpoint bytes.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import sys
 import time
 from pathlib import Path
 
 import torch
 
-from .checkpoint import save_checkpoint
+from .checkpoint import load_checkpoint, save_checkpoint
 from .data import (
     DatasetError,
     GraspDataset,
-    find_samples,
-    read_grasp_index,
+    find_samples_in,
     read_object_map,
     split_by_object,
     split_held_out_instances,
@@ -53,10 +60,14 @@ from .training import (
 def _args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m train_ae.train", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--data", required=True, type=Path, help="Cornell-layout dataset directory")
+    p.add_argument("--data", required=True, type=Path, nargs="+", metavar="DIR",
+                   help="Cornell-layout dataset directories (several train as one set)")
     p.add_argument("--config", choices=["cpu", "paper"], default="cpu")
     p.add_argument("--epochs", type=int, required=True)
     p.add_argument("--out", required=True, type=Path, help="checkpoint file to write")
+    p.add_argument("--init", type=Path, metavar="CKPT",
+                   help="start from this checkpoint's weights (a fine-tune) instead of a "
+                        "seeded initialisation")
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument("--optimizer", choices=OPTIMIZERS, default="adam",
@@ -103,21 +114,30 @@ def run(a: argparse.Namespace) -> dict:
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(a.seed)
     log = sys.stderr
+    data_txt = ", ".join(str(d) for d in a.data)
     object_map = read_object_map(a.object_map) if a.object_map else None
-    index = read_grasp_index(a.data)
-    samples = find_samples(a.data, object_map)
+    samples, jaw_fraction = find_samples_in(a.data, object_map)
     has_categories = all(s.category is not None for s in samples)
     holdout = a.holdout or ("per-category" if has_categories else "fraction")
     if holdout == "per-category":
         if not has_categories:
-            raise DatasetError(f"{a.data}: --holdout per-category needs categories from an lgdm "
+            raise DatasetError(f"{data_txt}: --holdout per-category needs categories from an lgdm "
                                f"index.json (format lgdm.grasp.v2); use --holdout fraction")
         train_s, held_s = split_held_out_instances(samples, a.per_category, a.seed)
     else:
         train_s, held_s = split_by_object(samples, a.val_fraction, a.seed)
-    jaw_fraction = index.jaw_side_fraction if index is not None else None
     config = dataclasses.replace(ModelConfig.preset(a.config), jaw_side_fraction=jaw_fraction)
     model = GraspAutoencoder(config)
+    init = None
+    if a.init is not None:
+        start, _ = load_checkpoint(a.init)
+        if dataclasses.replace(start.config, jaw_side_fraction=None) != dataclasses.replace(
+                config, jaw_side_fraction=None):
+            raise DatasetError(f"--init {a.init} is a {start.config.name!r} network, not "
+                               f"--config {a.config}")
+        model.load_state_dict(start.state_dict())
+        init = {"file": a.init.name, "sha256": hashlib.sha256(a.init.read_bytes()).hexdigest()}
+        print(f"starting from {a.init} (sha256 {init['sha256'][:16]}…)", file=log)
     train_objects = sorted({s.object_id for s in train_s})
     held_objects = sorted({s.object_id for s in held_s})
     jaw_txt = (f"decoded jaw = {jaw_fraction:.4f} x side "
@@ -164,7 +184,8 @@ def run(a: argparse.Namespace) -> dict:
               "no evaluation", file=log)
     metrics = {
         "training": {
-            "data": str(a.data),
+            "data": [str(d) for d in a.data],
+            "init": init,
             "epochs": a.epochs,
             "batch_size": a.batch_size,
             "lr": a.lr,
@@ -193,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     a = _args(argv)
     try:
         run(a)
-    except (DatasetError, FileNotFoundError) as e:
+    except (ValueError, FileNotFoundError) as e:  # DatasetError is a ValueError
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0
