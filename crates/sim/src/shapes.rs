@@ -104,7 +104,7 @@ pub const DENSE_MESH_CELLS: f32 = 128.0;
 /// The convex parts of `mesh` (point sets in the mesh frame) by VHACD, with a base slab (see the
 /// module docs) — or, for a mesh that fills at least [`SOLID_FRACTION`] of its hull, one part:
 /// all its vertices. A mesh of more than [`MAX_DECOMPOSITION_FACES`] triangles is simplified
-/// first.
+/// first. A mesh VHACD fails on is one part too (the hull).
 pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
     if mesh_solid_fraction(mesh).is_some_and(|f| f >= SOLID_FRACTION) {
         // Nothing to keep open: one part, the hull.
@@ -134,7 +134,16 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
         max_convex_hulls: config.max_parts.max(1),
         ..VHACDParameters::default()
     };
-    let d = VHACD::decompose(&params, &vertices, &source.triangles, true);
+    // parry's VHACD unwraps a convex hull that can fail on some voxelisations (YCB's
+    // `nine_hole_peg_test`, parry 0.31: "exiting an unfinished work"). A mesh it cannot cut is
+    // one part, its hull, as a solid mesh is: a loaded file never ends the process.
+    let hulls = std::panic::catch_unwind(|| {
+        VHACD::decompose(&params, &vertices, &source.triangles, true)
+            .compute_exact_convex_hulls(&vertices, &source.triangles)
+    });
+    let Ok(hulls) = hulls else {
+        return vec![mesh.vertices.clone()];
+    };
     let reduce = |points: Vec<Vector>| -> Vec<[f32; 3]> {
         let points = if dense {
             extreme_points(&points, HULL_DIRECTIONS)
@@ -143,8 +152,7 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
         };
         points.iter().map(|p| p.to_array()).collect()
     };
-    let mut parts: Vec<Vec<[f32; 3]>> = d
-        .compute_exact_convex_hulls(&vertices, &source.triangles)
+    let mut parts: Vec<Vec<[f32; 3]>> = hulls
         .into_iter()
         .map(|(points, _)| reduce(points))
         .collect();
