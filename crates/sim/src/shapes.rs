@@ -135,7 +135,7 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
         ..VHACDParameters::default()
     };
     // parry's VHACD unwraps a convex hull that can fail on some voxelisations (YCB's
-    // `nine_hole_peg_test`, parry 0.31: "exiting an unfinished work"). A mesh it cannot cut is
+    // `plate`, parry 0.31: "exiting an unfinished work"). A mesh it cannot cut is
     // one part, its hull, as a solid mesh is: a loaded file never ends the process.
     let hulls = std::panic::catch_unwind(|| {
         VHACD::decompose(&params, &vertices, &source.triangles, true)
