@@ -9,9 +9,12 @@
 use lgdm_pointcloud::crop::{CropSpec, crop_largest_object};
 use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::grasp::cornell::grasp_scene;
+use lgdm_pointcloud::grasp::decode::GraspDecodeParams;
 use lgdm_pointcloud::objects::procedural_library;
 use lgdm_pointcloud::segment::SegmentParams;
+use lgdm_pybridge::ae::robot::NetworkSource;
 use lgdm_pybridge::ae::{self, AeError, AutoEncoder, FEATURE_DIM};
+use lgdm_sim::source::{GraspQuery, GraspSource};
 use numpy::ndarray::{Array2, Array3, Array4};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
@@ -214,4 +217,29 @@ out = [((g.center_x + 0.5) * f - 0.5, (g.center_y + 0.5) * f - 0.5, g.angle, g.w
         "the best grasp {:?} is not on the mug",
         rust[0]
     );
+
+    // A robot run's `[attempt.decode]` reaches the network source through the query: the
+    // defaults give these grasps, a threshold above the best peak none, and the jaw stays the
+    // checkpoint's whatever the parameters say.
+    let source_grasps = |params: &GraspDecodeParams| {
+        let mut source = NetworkSource::load(&ckpt).unwrap_or_else(|e| panic!("{e}"));
+        let query = GraspQuery {
+            crop: &crop,
+            intrinsics: &scene.camera.intrinsics,
+            gripper: &GraspSpec::default(),
+            decode: params,
+        };
+        source.grasps(&query, k).unwrap()
+    };
+    assert_eq!(source_grasps(&GraspDecodeParams::default()), rust);
+    let above = GraspDecodeParams {
+        quality_threshold: rust[0].quality + 0.01,
+        ..Default::default()
+    };
+    assert!(source_grasps(&above).is_empty());
+    let other_jaw = GraspDecodeParams {
+        jaw_side_fraction: None,
+        ..Default::default()
+    };
+    assert_eq!(source_grasps(&other_jaw), rust);
 }

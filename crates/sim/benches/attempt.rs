@@ -85,6 +85,7 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
                     crop: &view.crop,
                     intrinsics: &view.shot.camera.intrinsics,
                     gripper: &gripper,
+                    decode: &attempt.decode,
                 };
                 let grasps = AnalyticSource::new().grasps(&query, 3).unwrap();
                 let grasp = view.grasp_in_world(&grasps[0], &attempt.decode).unwrap();
@@ -101,6 +102,7 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
                     crop: &s.view.crop,
                     intrinsics: &s.view.shot.camera.intrinsics,
                     gripper: &gripper,
+                    decode: &attempt.decode,
                 };
                 let grasps = AnalyticSource::new().grasps(&query, 1).unwrap();
                 let grasp = s.view.grasp_in_world(&grasps[0], &attempt.decode).unwrap();

@@ -142,8 +142,10 @@ pub struct AttemptConfig {
     /// rim after one (4.2 s): on the paper's objects 10 of the 16 grasped objects judged
     /// "dropped outside" were such master chef cans, standing in the basket's middle.
     pub release_settles: u32,
-    /// How crop grasps are placed in the world (default: train_ae's decoding; the median depth
-    /// of a 5×5 window).
+    /// How crop grasps are placed in the world (the median depth of a 5×5 window by default)
+    /// and how the network source decodes its maps (quality threshold, peak distance in the
+    /// network's input pixels, smoothing; default: train_ae's decoding; the jaw and the count
+    /// are the checkpoint's and the scenario's).
     pub decode: GraspDecodeParams,
 }
 

@@ -436,7 +436,8 @@ impl GraspDataJob {
                 if k == 0 {
                     continue;
                 }
-                let grasps = ranked_grasps(source, &view, &spec, k, fallbacks)?;
+                let grasps =
+                    ranked_grasps(source, &view, &spec, k, fallbacks, &cfg.attempt.decode)?;
                 proposals.extend(
                     grasps
                         .into_iter()

@@ -39,7 +39,7 @@ use std::time::Instant;
 use lgdm_base::Progress;
 use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::grasp::GraspSpec;
-use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams};
 use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
@@ -373,10 +373,10 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let source = &mut *self.source;
         let fallbacks = &self.spec.config.attempt.fallback_openings_m;
         let gripper = &self.gripper;
-        let grasps = clock.wall.time(Work::Source, || {
-            ranked_grasps(source, view, gripper, k, fallbacks)
-        })?;
         let decode = &self.spec.config.attempt.decode;
+        let grasps = clock.wall.time(Work::Source, || {
+            ranked_grasps(source, view, gripper, k, fallbacks, decode)
+        })?;
         Ok(clock.wall.time(Work::Perception, || {
             grasps
                 .iter()
@@ -1081,21 +1081,24 @@ pub(crate) fn play(
     })
 }
 
-/// `source`'s `k` best grasps on `view` for `gripper`; when it finds none for the full stroke,
-/// it is asked again for each narrower opening of `fallback_openings_m` in turn (an attempt
-/// opens the fingers to the grasp's width plus a margin, not to the stroke). The robot's and
-/// `lgdm sim grasp-data`'s one way to ask a source.
+/// `source`'s `k` best grasps on `view` for `gripper`, maps decoded with `decode` (the run's
+/// `[attempt.decode]`); when it finds none for the full stroke, it is asked again for each
+/// narrower opening of `fallback_openings_m` in turn (an attempt opens the fingers to the
+/// grasp's width plus a margin, not to the stroke). The robot's and `lgdm sim grasp-data`'s one
+/// way to ask a source.
 pub fn ranked_grasps(
     source: &mut dyn GraspSource,
     view: &ObjectView,
     gripper: &GraspSpec,
     k: usize,
     fallback_openings_m: &[f32],
+    decode: &GraspDecodeParams,
 ) -> Result<Vec<DecodedGrasp>, SourceError> {
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
         gripper,
+        decode,
     };
     let mut grasps = source.grasps(&query, k)?;
     for &opening in fallback_openings_m {

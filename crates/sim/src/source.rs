@@ -33,7 +33,8 @@
 //! };
 //! let intrinsics = Intrinsics::centered(64, 64, 100.0);
 //! let gripper = GraspSpec::default();
-//! let query = GraspQuery { crop: &crop, intrinsics: &intrinsics, gripper: &gripper };
+//! let decode = Default::default();
+//! let query = GraspQuery { crop: &crop, intrinsics: &intrinsics, gripper: &gripper, decode: &decode };
 //! let mut random = RandomSource::new(7);
 //! let grasps = random.grasps(&query, 3).unwrap();
 //! assert_eq!(grasps.len(), 3);
@@ -44,7 +45,7 @@
 use lgdm_pointcloud::crop::ObjectCrop;
 use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::grasp::analytic::{AnalyticError, AnalyticParams, analytic_grasps};
-use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams};
 use lgdm_pointcloud::render::Intrinsics;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -58,6 +59,11 @@ pub struct GraspQuery<'a> {
     pub intrinsics: &'a Intrinsics,
     /// The gripper (stroke, finger width and length, friction).
     pub gripper: &'a GraspSpec,
+    /// How a source that decodes grasp maps turns them into grasps: the run's
+    /// `[attempt.decode]` (quality threshold, peak distance, smoothing). The count is the `k`
+    /// asked for and the jaw the source's own (a checkpoint's); the analytic and random sources
+    /// have no maps and ignore it.
+    pub decode: &'a GraspDecodeParams,
 }
 
 impl GraspQuery<'_> {
@@ -362,6 +368,7 @@ mod tests {
                 crop,
                 intrinsics: &intrinsics,
                 gripper: &gripper,
+                decode: &Default::default(),
             };
             source.grasps(&query, k).unwrap()
         };

@@ -105,6 +105,7 @@ fn plans_that_close_on_air_are_refused() {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
         gripper: &gripper,
+        decode: &Default::default(),
     };
     let grasps = AnalyticSource::new().grasps(&query, 1).unwrap();
     let config = AttemptConfig::default();
@@ -161,6 +162,7 @@ fn place_a_can_in(basket: usize) {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
         gripper: &gripper,
+        decode: &Default::default(),
     };
     let grasps = AnalyticSource::new().grasps(&query, 3).unwrap();
     assert!(!grasps.is_empty());

@@ -337,7 +337,18 @@ def test_init_starts_from_a_checkpoint(lgdm_dir, tmp_path, capsys):
     tuned = tmp_path / "tuned.pt"
     # A step of lr 1e-12 leaves the weights where --init put them, not at the seeded start.
     assert train_cli.main([*base, "--out", str(tuned), "--init", str(start), "--lr", "1e-12"]) == 0
-    assert f"starting from {start}" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"starting from {start}" in err
+    # A fine-tune holds out what its starting checkpoint held out (not a fresh seeded choice).
+    held = load_checkpoint(start)[1]["metrics"]["heldout"]["objects"]
+    assert load_checkpoint(tuned)[1]["metrics"]["heldout"]["objects"] == held
+    assert "held out (init)" in err
+    reseeded = tmp_path / "reseeded.pt"
+    assert train_cli.main([*base, "--out", str(reseeded), "--init", str(start), "--seed", "6",
+                           "--holdout", "per-category"]) == 0
+    assert "held out (per-category)" in capsys.readouterr().err
+    assert train_cli.main([*base, "--out", str(reseeded), "--holdout", "init"]) == 2
+    assert "--holdout init needs --init CKPT" in capsys.readouterr().err
     # (the parameters: batch-norm statistics move with any step)
     a, b = (dict(load_checkpoint(p)[0].named_parameters()) for p in (start, tuned))
     weights = list(a)

@@ -37,11 +37,23 @@ impl AutoEncoder {
         decode_params(self.jaw_side_fraction(), k)
     }
 
-    /// At most `k` grasps on `crop`, best first, in crop pixels (see the module docs); an empty
-    /// list when no peak of the quality map reaches the threshold or `k` is 0. Errors: a
-    /// malformed crop ([`AeError::Input`]), Python ([`AeError::Python`]), non-finite maps
+    /// At most `k` grasps on `crop`, best first, in crop pixels (see the module docs), decoded
+    /// with train_ae's defaults ([`AutoEncoder::decode_params`]); an empty list when no peak of
+    /// the quality map reaches the threshold or `k` is 0. Errors: a malformed crop
+    /// ([`AeError::Input`]), Python ([`AeError::Python`]), non-finite maps
     /// ([`AeError::Decode`]).
     pub fn crop_grasps(&self, crop: &ObjectCrop, k: usize) -> Result<Vec<DecodedGrasp>, AeError> {
+        self.crop_grasps_with(crop, &self.decode_params(k), k)
+    }
+
+    /// [`AutoEncoder::crop_grasps`] with `params`' threshold, peak distance and smoothing (e.g.
+    /// a robot run's `[attempt.decode]`); the jaw is still this checkpoint's and the count `k`.
+    pub fn crop_grasps_with(
+        &self,
+        crop: &ObjectCrop,
+        params: &GraspDecodeParams,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, AeError> {
         let n = crop.size_px as usize;
         if n == 0 || crop.rgb.len() != n * n || crop.depth_m.len() != n * n {
             return Err(AeError::Input(format!(
@@ -65,7 +77,12 @@ impl AutoEncoder {
             sin2t: &out.sin2t,
             width: &out.width,
         };
-        Ok(decode_grasps(maps, &self.decode_params(k))?
+        let params = GraspDecodeParams {
+            jaw_side_fraction: self.jaw_side_fraction(),
+            num_grasps: k,
+            ..*params
+        };
+        Ok(decode_grasps(maps, &params)?
             .iter()
             .map(|g| crop_from_input(g, n, s))
             .collect())

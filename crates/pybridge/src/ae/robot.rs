@@ -62,13 +62,15 @@ impl GraspSource for NetworkSource {
         query: &GraspQuery<'_>,
         k: usize,
     ) -> Result<Vec<DecodedGrasp>, SourceError> {
-        self.model.crop_grasps(query.crop, k).map_err(|e| match e {
-            AeError::Input(message) => SourceError::BadCrop(message),
-            other => SourceError::Failed {
-                source_name: Self::NAME.into(),
-                source: Box::new(other),
-            },
-        })
+        self.model
+            .crop_grasps_with(query.crop, query.decode, k)
+            .map_err(|e| match e {
+                AeError::Input(message) => SourceError::BadCrop(message),
+                other => SourceError::Failed {
+                    source_name: Self::NAME.into(),
+                    source: Box::new(other),
+                },
+            })
     }
 
     /// The checkpoint, the input side and the jaw (also printed when the run starts).

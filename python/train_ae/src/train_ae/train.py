@@ -3,7 +3,8 @@
     python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
         [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
         [--loss weighted|paper] [--pos-weight 10]
-        [--seed 0] [--holdout per-category|fraction] [--per-category 1] [--val-fraction 0.1]
+        [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
+        [--val-fraction 0.1]
         [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
 
 Whole objects are held out: by default one instance per category (``--holdout per-category``,
@@ -20,7 +21,9 @@ Several ``--data`` directories train as one set (e.g. ``gen-dataset``'s geometri
 ``lgdm sim grasp-data``'s physics labels): an object name held out is held out of every one.
 ``--init CKPT`` starts from a checkpoint's weights (its configuration must be ``--config``'s)
 instead of a seeded initialisation: a fine-tune; the checkpoint's file name and sha256 are
-recorded in the new one's metrics.
+recorded in the new one's metrics. A fine-tune holds out the objects its checkpoint held out
+(``--holdout init``, the default with ``--init``), so its held-out score is on objects neither
+stage trained on.
 
 Same seed and thread count (and ``--init`` file) -> same checkpoint bytes.
 """
@@ -40,6 +43,7 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .data import (
     DatasetError,
     GraspDataset,
+    Sample,
     find_samples_in,
     read_object_map,
     split_by_object,
@@ -79,8 +83,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
                    help=f"weight of positive pixels for --loss weighted (default "
                         f"{DEFAULT_POS_WEIGHT:g})")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--holdout", choices=["per-category", "fraction"], default=None,
-                   help="held-out objects: per-category (default when the index gives "
+    p.add_argument("--holdout", choices=["per-category", "fraction", "init"], default=None,
+                   help="held-out objects: init (the objects --init's checkpoint held out; "
+                        "the default with an --init that records them), per-category (default when the index gives "
                         "categories) or fraction (default otherwise)")
     p.add_argument("--per-category", type=int, default=1,
                    help="objects held out per category with --holdout per-category (default 1)")
@@ -109,6 +114,27 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     return a
 
 
+def held_out_by(start: tuple | None) -> list[str] | None:
+    """The objects a loaded checkpoint (``load_checkpoint``'s pair) held out, if it says."""
+    if start is None:
+        return None
+    return ((start[1].get("metrics") or {}).get("heldout") or {}).get("objects") or None
+
+
+def split_as_init(samples: list[Sample], start: tuple | None, init: Path | None
+                  ) -> tuple[list[Sample], list[Sample]]:
+    """(train, held-out) with the objects the ``--init`` checkpoint held out held out again, so
+    a fine-tune never trains on what its starting point was scored on."""
+    if start is None:
+        raise DatasetError("--holdout init needs --init CKPT")
+    held = set(held_out_by(start) or ())
+    if not held:
+        raise DatasetError(f"--init {init} records no held-out objects: choose --holdout "
+                           f"per-category or fraction")
+    return ([s for s in samples if s.object_id not in held],
+            [s for s in samples if s.object_id in held])
+
+
 def run(a: argparse.Namespace) -> dict:
     torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
@@ -118,8 +144,12 @@ def run(a: argparse.Namespace) -> dict:
     object_map = read_object_map(a.object_map) if a.object_map else None
     samples, jaw_fraction = find_samples_in(a.data, object_map)
     has_categories = all(s.category is not None for s in samples)
-    holdout = a.holdout or ("per-category" if has_categories else "fraction")
-    if holdout == "per-category":
+    start = load_checkpoint(a.init) if a.init is not None else None
+    holdout = a.holdout or ("init" if held_out_by(start) else
+                            "per-category" if has_categories else "fraction")
+    if holdout == "init":
+        train_s, held_s = split_as_init(samples, start, a.init)
+    elif holdout == "per-category":
         if not has_categories:
             raise DatasetError(f"{data_txt}: --holdout per-category needs categories from an lgdm "
                                f"index.json (format lgdm.grasp.v2); use --holdout fraction")
@@ -129,8 +159,8 @@ def run(a: argparse.Namespace) -> dict:
     config = dataclasses.replace(ModelConfig.preset(a.config), jaw_side_fraction=jaw_fraction)
     model = GraspAutoencoder(config)
     init = None
-    if a.init is not None:
-        start, _ = load_checkpoint(a.init)
+    if start is not None:
+        start, _ = start
         if dataclasses.replace(start.config, jaw_side_fraction=None) != dataclasses.replace(
                 config, jaw_side_fraction=None):
             raise DatasetError(f"--init {a.init} is a {start.config.name!r} network, not "
