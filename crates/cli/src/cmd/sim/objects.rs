@@ -18,6 +18,7 @@ pub fn run(args: ObjectsArgs) -> Result<()> {
     let set = match args.set {
         ObjectSetArg::Paper => ObjectSet::Paper,
         ObjectSetArg::All => ObjectSet::All,
+        ObjectSetArg::Others => ObjectSet::Others,
     };
     let names = lay_out(set, &from, &args.out)?;
     outln!(
