@@ -54,28 +54,77 @@ def test_default_checkpoint_loads_as_the_cpu_configuration():
         assert np.isfinite(m).all()
 
 
-def test_make_default_runs_gen_dataset_then_train(tmp_path, monkeypatch, capsys):
-    """The two steps with a stand-in lgdm that writes the synthetic lgdm-layout fixture."""
+def _fake_lgdm(tmp_path: Path) -> Path:
+    """A stand-in lgdm: ``gen-dataset`` writes the synthetic lgdm-layout fixture under
+    OUT/grasp, ``sim grasp-data`` writes one into OUT, ``sim objects`` makes OUT."""
     import sys
-
-    from train_ae import make_default
 
     fake = tmp_path / "lgdm"
     src = Path(__file__).resolve().parents[1] / "src"
     fake.write_text(
         f"#!{sys.executable}\n"
-        "import sys\n"
+        "import os, sys\n"
         f"sys.path.insert(0, {str(src)!r})\n"
         "from train_ae.synthetic import write_synthetic_dataset\n"
         "out = sys.argv[sys.argv.index('--out') + 1]\n"
-        "write_synthetic_dataset(out + '/grasp', objects=4, images_per_object=2)\n")
+        "if 'objects' in sys.argv:\n"
+        "    os.makedirs(out)\n"
+        "else:\n"
+        "    write_synthetic_dataset(out + ('/grasp' if 'gen-dataset' in sys.argv else ''),\n"
+        "                            objects=4, images_per_object=2, layout='lgdm',\n"
+        "                            categories=2)\n")
     fake.chmod(0o755)
+    return fake
+
+
+def test_make_default_runs_gen_dataset_then_train(tmp_path, capsys):
+    """The geometric stage alone (``--geometric-only``) with a stand-in lgdm."""
+    from train_ae import make_default
+
+    fake = _fake_lgdm(tmp_path)
     out = tmp_path / "ckpt.pt"
     assert make_default.main(["--lgdm", str(fake), "--work", str(tmp_path / "w"), "--out",
-                              str(out), "--epochs", "1", "--images", "8", "--quiet"]) == 0
+                              str(out), "--epochs", "1", "--images", "8", "--quiet",
+                              "--geometric-only"]) == 0
     err = capsys.readouterr().err
     assert (f"$ {fake} gen-dataset --preset paper --frames 1 --grasp-images 8 --seed 0 "
             f"--out {tmp_path / 'w' / 'data'} --progress none") in err
     assert "--holdout per-category" in err and "held out (per-category)" in err
+    assert "grasp-data" not in err
     _, ckpt = load_checkpoint(out)
     assert ckpt["config"]["jaw_side_fraction"] == pytest.approx(0.02 / 0.22)
+
+
+def test_make_default_fine_tunes_on_the_robots_data(tmp_path, capsys):
+    """Both stages: the robot's data (procedural, then the YCB meshes but the paper's), and a
+    fine-tune of the geometric checkpoint on the three sets that holds out what it held out."""
+    from train_ae import make_default
+
+    fake = _fake_lgdm(tmp_path)
+    work, out = tmp_path / "w", tmp_path / "ckpt.pt"
+    argv = ["--lgdm", str(fake), "--work", str(work), "--out", str(out), "--epochs", "1",
+            "--images", "8", "--robot-scenes", "5", "--ycb-scenes", "3", "--finetune-epochs",
+            "1", "--quiet"]
+    assert make_default.main(argv) == 0
+    err = capsys.readouterr().err
+    for line in (f"$ {fake} sim grasp-data --out {work / 'robot'} --scenes 5 --seed 0 "
+                 f"--instances 10 --progress none",
+                 f"$ {fake} sim objects --set others --out {work / 'ycb-others'}",
+                 f"$ {fake} sim grasp-data --out {work / 'robot-ycb'} --meshes "
+                 f"{work / 'ycb-others'} --scenes 3 --seed 2 --progress none",
+                 f"--init {work / 'geometric' / 'cpu.pt'} --epochs 1"):
+        assert line in err, line
+    geometric = load_checkpoint(work / "geometric" / "cpu.pt")[1]["metrics"]
+    tuned = load_checkpoint(out)[1]["metrics"]
+    assert tuned["training"]["data"] == [str(work / "robot"), str(work / "data" / "grasp"),
+                                         str(work / "robot-ycb")]
+    assert tuned["training"]["init"]["file"] == "cpu.pt"
+    assert tuned["heldout"]["objects"] == geometric["heldout"]["objects"]
+    # --skip-data reuses every data directory; --init replaces the geometric stage.
+    assert make_default.main([*argv, "--skip-data", "--init", str(out),
+                              "--out", str(tmp_path / "again.pt")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("skipped") == 4 and "step 2" not in err
+    with pytest.raises(SystemExit) as e:
+        make_default.main([*argv, "--init", str(tmp_path / "none.pt")])
+    assert e.value.code == 2 and "none.pt does not exist" in capsys.readouterr().err

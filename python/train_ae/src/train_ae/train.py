@@ -85,8 +85,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--holdout", choices=["per-category", "fraction", "init"], default=None,
                    help="held-out objects: init (the objects --init's checkpoint held out; "
-                        "the default with an --init that records them), per-category (default when the index gives "
-                        "categories) or fraction (default otherwise)")
+                        "the default with an --init that records them), per-category "
+                        "(default when the index gives categories) or fraction (default "
+                        "otherwise)")
     p.add_argument("--per-category", type=int, default=1,
                    help="objects held out per category with --holdout per-category (default 1)")
     p.add_argument("--val-fraction", type=float, default=0.1,
