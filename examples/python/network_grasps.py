@@ -43,6 +43,7 @@ class NetworkGrasps:
             num_grasps=crop["max_grasps"],
             jaw_side_fraction=self.jaw,
             crop_px=crop["rgb"].shape[0],
+            decode=crop["decode"],
         )
 
 

@@ -13,7 +13,9 @@
 use std::path::PathBuf;
 
 use lgdm_pointcloud::Progress;
-use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspMapsView, decode_grasps, wrap_angle};
+use lgdm_pointcloud::grasp::decode::{
+    DecodedGrasp, GraspDecodeParams, GraspMapsView, decode_grasps, wrap_angle,
+};
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::config::{ConfigOverrides, OptionValue, SimConfig};
 use lgdm_sim::job::{
@@ -72,6 +74,7 @@ impl CallableSource {
         d.set_item("stroke_m", query.gripper.max_opening_m)?;
         d.set_item("finger_width_m", query.gripper.finger_width_m)?;
         d.set_item("max_grasps", k)?;
+        d.set_item("decode", decode_dict(py, query.decode)?)?;
         let answer = self.callable.call1(py, (d,))?;
         let answer = answer.bind(py);
         let list = answer.cast::<PyList>().map_err(|_| {
@@ -715,15 +718,76 @@ pub fn sim_resume(
     }
 }
 
+/// The keys of a crop's `decode` dict: the run's `[attempt.decode]` settings the network
+/// source decodes its maps with (the others, the jaw and the depth window, are not the maps').
+const DECODE_KEYS: [&str; 4] = [
+    "quality_threshold",
+    "min_distance_px",
+    "quality_sigma_px",
+    "width_sigma_px",
+];
+
+/// A crop's `decode` dict: the run's decoder settings ([`DECODE_KEYS`]).
+fn decode_dict<'py>(py: Python<'py>, p: &GraspDecodeParams) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item(DECODE_KEYS[0], p.quality_threshold)?;
+    d.set_item(DECODE_KEYS[1], p.min_distance_px)?;
+    d.set_item(DECODE_KEYS[2], p.quality_sigma_px)?;
+    d.set_item(DECODE_KEYS[3], p.width_sigma_px)?;
+    Ok(d)
+}
+
+/// `params` with the settings of a `decode` dict ([`DECODE_KEYS`]; missing keys keep theirs).
+fn with_decode_dict(
+    mut params: GraspDecodeParams,
+    decode: &Bound<'_, PyDict>,
+) -> PyResult<GraspDecodeParams> {
+    for (key, value) in decode.iter() {
+        let key: String = key
+            .extract()
+            .map_err(|_| errors::input("decode: keys must be strings"))?;
+        let number = || -> PyResult<f64> {
+            let x: f64 = value
+                .extract()
+                .map_err(|_| errors::input(format!("decode: `{key}` is not a number")))?;
+            if x.is_finite() && x >= 0.0 {
+                Ok(x)
+            } else {
+                Err(errors::input(format!(
+                    "decode: `{key}` is {x}, not a finite number ≥ 0"
+                )))
+            }
+        };
+        match key.as_str() {
+            "quality_threshold" => params.quality_threshold = number()? as f32,
+            "quality_sigma_px" => params.quality_sigma_px = number()? as f32,
+            "width_sigma_px" => params.width_sigma_px = number()? as f32,
+            "min_distance_px" => {
+                params.min_distance_px = value.extract().map_err(|_| {
+                    errors::input("decode: `min_distance_px` is not a non-negative integer")
+                })?
+            }
+            other => {
+                return Err(errors::input(format!(
+                    "decode: unknown setting `{other}` (known: {})",
+                    DECODE_KEYS.join(", ")
+                )));
+            }
+        }
+    }
+    Ok(params)
+}
+
 /// The grasp autoencoder's maps — quality, cos 2θ, sin 2θ and width, each `(H, H)` float32 at
 /// the network's input size — decoded as `python -m train_ae.evaluate` decodes them into at most
 /// `num_grasps` grasps (best first) with the checkpoint's jaw (`jaw_side_fraction`; `None`:
 /// half the opening), moved to the pixels of the `crop_px`-side crop the input was resized from
-/// (default: the maps' own size). The dicts are the grasp callables' convention
-/// (`lgdm.sim.decode_grasps`): a callable wrapping the network with it gives the robot the
-/// grasps `--grasp network` gives, bit for bit.
+/// (default: the maps' own size). `decode` (a crop's `decode` dict: the run's
+/// `[attempt.decode]`) replaces train_ae's threshold, peak window and smoothing. The dicts are
+/// the grasp callables' convention (`lgdm.sim.decode_grasps`): a callable wrapping the network
+/// with it gives the robot the grasps `--grasp network` gives, bit for bit.
 #[pyfunction]
-#[pyo3(signature = (quality, cos2t, sin2t, width, *, num_grasps = 1, jaw_side_fraction = None, crop_px = None))]
+#[pyo3(signature = (quality, cos2t, sin2t, width, *, num_grasps = 1, jaw_side_fraction = None, crop_px = None, decode = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn sim_decode_grasps<'py>(
     py: Python<'py>,
@@ -734,6 +798,7 @@ pub fn sim_decode_grasps<'py>(
     num_grasps: usize,
     jaw_side_fraction: Option<f32>,
     crop_px: Option<usize>,
+    decode: Option<Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyList>> {
     let shape = quality.shape().to_vec();
     for (name, map) in [("cos2t", &cos2t), ("sin2t", &sin2t), ("width", &width)] {
@@ -770,8 +835,11 @@ pub fn sim_decode_grasps<'py>(
     if num_grasps == 0 {
         return Ok(PyList::empty(py));
     }
-    let grasps = decode_grasps(maps, &decode_params(jaw_side_fraction, num_grasps))
-        .map_err(|e| errors::input(e.to_string()))?;
+    let mut params = decode_params(jaw_side_fraction, num_grasps);
+    if let Some(decode) = &decode {
+        params = with_decode_dict(params, decode)?;
+    }
+    let grasps = decode_grasps(maps, &params).map_err(|e| errors::input(e.to_string()))?;
     let list = PyList::empty(py);
     for g in grasps {
         let g = match crop_px {

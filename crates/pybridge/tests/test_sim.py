@@ -88,6 +88,38 @@ def test_a_callable_gives_the_grasps_the_analytic_source_would():
     assert r["attempts"][0]["grasp_success"] == reference["attempts"][0]["grasp_success"]
 
 
+def test_a_callable_decodes_with_the_runs_decoder_settings(tmp_path: Path):
+    """The crop carries the run's ``[attempt.decode]``, and ``decode_grasps`` takes it: a
+    network wrapped as a callable decodes as ``--grasp network`` does under any ``sim.toml``."""
+    lgdm.sim.grasp(rounds=1, seed=11, out=tmp_path / "first")
+    toml = (tmp_path / "first" / "sim.toml").read_text()
+    assert "quality_threshold = 0.2\n" in toml and "min_distance_px = 20\n" in toml
+    config = tmp_path / "sim.toml"
+    config.write_text(toml.replace("quality_threshold = 0.2\n", "quality_threshold = 0.55\n")
+                      .replace("min_distance_px = 20\n", "min_distance_px = 7\n"))
+    seen = []
+
+    def nothing(crop: dict) -> list:
+        seen.append(crop["decode"])
+        return []
+
+    lgdm.sim.grasp(grasp=nothing, rounds=1, seed=11, config=config)
+    assert seen and seen[0] == pytest.approx({"quality_threshold": 0.55, "min_distance_px": 7,
+                                              "quality_sigma_px": 2.0, "width_sigma_px": 1.0})
+    assert isinstance(seen[0]["min_distance_px"], int)
+    # One peak of quality 0.5: found with train_ae's threshold (0.2), not with the run's 0.55.
+    q = np.zeros((56, 56), np.float32)
+    q[20:31, 20:31] = 0.5
+    c, s, w = np.ones_like(q), np.zeros_like(q), np.full_like(q, 0.3)
+    assert len(lgdm.sim.decode_grasps(q, c, s, w)) == 1
+    assert lgdm.sim.decode_grasps(q, c, s, w, decode=seen[0]) == []
+    assert len(lgdm.sim.decode_grasps(q, c, s, w, decode={"quality_threshold": 0.45})) == 1
+    with pytest.raises(lgdm.LgdmError, match="unknown setting `jaw`"):
+        lgdm.sim.decode_grasps(q, c, s, w, decode={"jaw": 1.0})
+    with pytest.raises(lgdm.LgdmError, match="quality_threshold"):
+        lgdm.sim.decode_grasps(q, c, s, w, decode={"quality_threshold": float("nan")})
+
+
 def test_a_failing_callable_names_itself_and_keeps_its_exception():
     def broken_network(crop: dict) -> list:
         raise ValueError("weights missing")

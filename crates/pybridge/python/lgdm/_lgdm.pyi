@@ -303,5 +303,6 @@ def sim_decode_grasps(
     num_grasps: int = 1,
     jaw_side_fraction: float | None = None,
     crop_px: int | None = None,
+    decode: dict[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """The grasp autoencoder's maps decoded by the Rust decoder (``lgdm.sim.decode_grasps``)."""

@@ -18,7 +18,9 @@ object with one argument, the robot's crop, a dict of:
 - ``focal_px``: the crop's focal length in crop pixels — a crop pixel at depth ``d`` spans
   ``d / focal_px`` metres; ``table_depth_m``: the table's depth at the crop's centre;
 - ``stroke_m`` and ``finger_width_m``: the gripper;
-- ``max_grasps``: how many of the returned grasps the robot looks at (the first ones).
+- ``max_grasps``: how many of the returned grasps the robot looks at (the first ones);
+- ``decode``: the run's decoder settings (``[attempt.decode]``: ``quality_threshold``,
+  ``min_distance_px``, ``quality_sigma_px``, ``width_sigma_px``), for :func:`decode_grasps`.
 
 It returns a list (best first; empty: no grasp found) of dicts in the grasp decoders'
 convention: ``center_px`` ``(x, y)`` (x the column, y the row, crop pixels), ``angle`` (the
@@ -292,6 +294,7 @@ def decode_grasps(
     num_grasps: int = 1,
     jaw_side_fraction: float | None = None,
     crop_px: int | None = None,
+    decode: dict[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """The grasp autoencoder's maps — quality, cos 2θ, sin 2θ and width, each ``(H, H)`` float32
     at the network's input size — decoded as ``python -m train_ae.evaluate`` decodes them: at
@@ -299,7 +302,9 @@ def decode_grasps(
     ``train_ae.bridge.jaw_side_fraction``; ``None``: half the opening), in the pixels of the
     ``crop_px``-side crop the input was resized from (default: the maps' own). The dicts are a
     grasp callable's answer (the module's docs); it is the Rust decoder ``--grasp network``
-    uses, so a callable wrapping the network with it gives the robot the same grasps.
+    uses, so a callable wrapping the network with it gives the robot the same grasps. Pass the
+    crop's ``decode`` (the run's ``[attempt.decode]``) to decode with the run's threshold, peak
+    window and smoothing, as ``--grasp network`` does; without it, train_ae's defaults.
     """
     return _lgdm.sim_decode_grasps(
         quality,
@@ -309,6 +314,7 @@ def decode_grasps(
         num_grasps=num_grasps,
         jaw_side_fraction=jaw_side_fraction,
         crop_px=crop_px,
+        decode=decode,
     )
 
 
