@@ -65,7 +65,7 @@ def test_ground_truth_maps_score_every_lgdm_image(lgdm_grasp_dir):
             if not rects:
                 continue
             n += 1
-            pred = decode_grasps(*targets, num_grasps=1, jaw_px=jaw)
+            pred = decode_grasps(*targets[:4], num_grasps=1, jaw_px=jaw)
             if pred and is_correct(pred[0], rects):
                 correct += 1
             else:

@@ -174,7 +174,7 @@ def test_zoom_keeps_rectangles_on_their_object(fixture_dir, zoom):
         assert g.width_px == pytest.approx(raw.width_px * scale, rel=0.02)
         # Depth channel (mean-subtracted) under the grasp centre: the box, nearer than average.
         assert x[0, round(g.center_y), round(g.center_x)] < -0.01
-        np.testing.assert_array_equal(y, np.stack(grasp_maps(rects, (112, 112))))
+        np.testing.assert_array_equal(y[:4], np.stack(grasp_maps(rects, (112, 112))))
 
 
 def test_augmentation_is_seeded_by_seed_epoch_and_index(fixture_dir):
@@ -342,8 +342,11 @@ def test_flip_and_rotation_move_square_crops_and_labels_together(lgdm_dir, rot):
     assert (r.width_px, r.jaw_px) == pytest.approx((r0.width_px, r0.jaw_px))
     np.testing.assert_allclose(y[1], np.rot90(y0[1][:, ::-1], rot) * (-1) ** rot, atol=1e-6)
     np.testing.assert_allclose(y[2], -np.rot90(y0[2][:, ::-1], rot) * (-1) ** rot, atol=1e-6)
+    # The negative rectangle's mask moves with them.
+    assert y0[4].sum() > 0
+    np.testing.assert_array_equal(y[4], np.rot90(y0[4][:, ::-1], rot))
     # Decoding the transformed labels gives the transformed rectangle.
-    (d,) = decode_grasps(*y, jaw_px=r.jaw_px)
+    (d,) = decode_grasps(*y[:4], jaw_px=r.jaw_px)
     assert is_correct(d, [r]) and angle_difference(d.angle, r.angle) < math.radians(1)
 
 
@@ -371,7 +374,7 @@ def test_square_augmentation_draws_rotation_flip_and_shift_only(lgdm_dir):
     widths, angles = set(), set()
     for e in range(12):
         x, y, (r,) = ds.item(0, epoch=e)
-        np.testing.assert_array_equal(y, np.stack(grasp_maps([r], (112, 112))))
+        np.testing.assert_array_equal(y[:4], np.stack(grasp_maps([r], (112, 112))))
         widths.add(round(r.width_px, 6))
         angles.add(round(angle_difference(r.angle, r0.angle), 6))
         assert x[0, round(r.center_y), round(r.center_x)] < -0.01  # still on the box

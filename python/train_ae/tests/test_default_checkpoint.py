@@ -112,13 +112,15 @@ def test_make_default_fine_tunes_on_the_robots_data(tmp_path, capsys):
                  f"$ {fake} sim objects --set others --out {work / 'ycb-others'}",
                  f"$ {fake} sim grasp-data --out {work / 'robot-ycb'} --meshes "
                  f"{work / 'ycb-others'} --scenes 3 --seed 2 --progress none",
-                 f"--init {work / 'geometric' / 'cpu.pt'} --epochs 1"):
+                 f"--init {work / 'geometric' / 'cpu.pt'} --epochs 1 --neg-weight 10 "):
         assert line in err, line
     geometric = load_checkpoint(work / "geometric" / "cpu.pt")[1]["metrics"]
     tuned = load_checkpoint(out)[1]["metrics"]
     assert tuned["training"]["data"] == [str(work / "robot"), str(work / "data" / "grasp"),
                                          str(work / "robot-ycb")]
     assert tuned["training"]["init"]["file"] == "cpu.pt"
+    # The fine-tune weighs the robot's failed grasps; the geometric stage does not.
+    assert (geometric["training"]["neg_weight"], tuned["training"]["neg_weight"]) == (1, 10)
     assert tuned["heldout"]["objects"] == geometric["heldout"]["objects"]
     # --skip-data reuses every data directory; --init replaces the geometric stage.
     assert make_default.main([*argv, "--skip-data", "--init", str(out),

@@ -17,6 +17,7 @@ from train_ae.grasp import (
     grasp_maps,
     is_correct,
     jaw_px_for,
+    negative_map,
     polygon_iou,
     rectangle_iou,
 )
@@ -133,6 +134,19 @@ def test_label_maps_mark_the_centre_third():
     assert w[40, 60] == pytest.approx(60 / WIDTH_SCALE_PX)
     assert q.sum() == pytest.approx(21 * 21)
     assert np.all(w[q == 0] == 0) and np.all(c2[q == 0] == 0)
+
+
+def test_negative_map_marks_failures_where_no_positive_is():
+    good = GraspRectangle(60, 40, 0.0, 60, 20)  # quality 1 at x in [50, 70], y in [30, 50]
+    bad = GraspRectangle(75, 40, 0.0, 60, 20)   # centre third: x in [65, 85]
+    q = grasp_maps([good], (80, 120))[0]
+    neg = negative_map([bad], q)
+    assert neg.dtype == np.float32 and neg.shape == q.shape
+    assert neg[40, 80] == 1 and neg[40, 72] == 1
+    assert neg[40, 68] == 0 and q[40, 68] == 1  # a positive wins where both label
+    assert neg[40, 87] == 0 and neg[29, 80] == 0
+    assert neg.sum() == pytest.approx(21 * 21 - 6 * 21)  # x 65..70 overlap the positive
+    assert not negative_map([], q).any()
 
 
 def test_label_maps_and_back_round_trip():

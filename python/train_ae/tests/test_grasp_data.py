@@ -48,8 +48,12 @@ def test_a_grasp_data_set_loads_with_its_outcomes(grasp_data_dir):
         tried += len(rects.positives) + len(rects.negatives)
     assert tried > 0
     # The images are network inputs like gen-dataset's.
-    inputs, targets, _ = GraspDataset(samples, 112, augment=True, seed=0).item(0)
-    assert inputs.shape == (4, 112, 112) and targets.shape == (4, 112, 112)
+    ds = GraspDataset(samples, 112, augment=True, seed=0)
+    inputs, targets, _ = ds.item(0)
+    assert inputs.shape == (4, 112, 112) and targets.shape == (5, 112, 112)
+    # The failures reach the loss: the negative mask marks them.
+    failed = next(i for i, s in enumerate(samples) if load_rectangles(s).negatives)
+    assert ds.item(failed)[1][4].sum() > 0
 
 
 def test_outcomes_that_do_not_match_the_rectangles_are_refused(grasp_data_dir, tmp_path):

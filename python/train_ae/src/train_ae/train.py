@@ -2,7 +2,7 @@
 
     python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
         [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
-        [--loss weighted|paper] [--pos-weight 10]
+        [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1]
         [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
         [--val-fraction 0.1]
         [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
@@ -52,6 +52,7 @@ from .data import (
 from .model import GraspAutoencoder, ModelConfig, parameter_count
 from .progress import ProgressBar
 from .training import (
+    DEFAULT_NEG_WEIGHT,
     DEFAULT_POS_WEIGHT,
     LOSSES,
     OPTIMIZERS,
@@ -82,6 +83,10 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--pos-weight", type=float, default=DEFAULT_POS_WEIGHT,
                    help=f"weight of positive pixels for --loss weighted (default "
                         f"{DEFAULT_POS_WEIGHT:g})")
+    p.add_argument("--neg-weight", type=float, default=DEFAULT_NEG_WEIGHT,
+                   help="weight of the quality term at labelled failures (the negative "
+                        "rectangles) for --loss weighted, relative to unlabelled pixels "
+                        f"(default {DEFAULT_NEG_WEIGHT:g}: no extra weight)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--holdout", choices=["per-category", "fraction", "init"], default=None,
                    help="held-out objects: init (the objects --init's checkpoint held out; "
@@ -106,6 +111,8 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
         p.error("--lr must be positive")
     if not a.pos_weight > 0:
         p.error("--pos-weight must be positive")
+    if not a.neg_weight > 0:
+        p.error("--neg-weight must be positive")
     if not 0 <= a.val_fraction < 1:
         p.error("--val-fraction must be in [0, 1)")
     if a.per_category < 0:
@@ -180,7 +187,9 @@ def run(a: argparse.Namespace) -> dict:
           f"{held_objects}; training: {len(train_s)} images of {len(train_objects)} objects",
           file=log)
     print(f"optimizer {a.optimizer} lr {a.lr:g}, loss {a.loss}"
-          + (f" (positives x{a.pos_weight:g})" if a.loss == "weighted" else "")
+          + (f" (positives x{a.pos_weight:g}"
+             + (f", failures x{a.neg_weight:g}" if a.neg_weight != 1 else "") + ")"
+             if a.loss == "weighted" else "")
           + f", batch {a.batch_size}, augment {'off' if a.no_augment else 'on'}", file=log)
     train_ds = GraspDataset(train_s, config.input_size, augment=not a.no_augment, seed=a.seed)
     bars: dict[int, ProgressBar] = {}
@@ -197,7 +206,8 @@ def run(a: argparse.Namespace) -> dict:
             bar.close()
 
     hist = train_model(model, train_ds, a.epochs, a.batch_size, a.lr, a.seed, progress,
-                       loss=a.loss, pos_weight=a.pos_weight, optimizer=a.optimizer)
+                       loss=a.loss, pos_weight=a.pos_weight, optimizer=a.optimizer,
+                       neg_weight=a.neg_weight)
     s_per_img = hist.seconds / max(hist.images, 1)
     print(f"trained {a.epochs} epochs in {hist.seconds:.1f} s ({s_per_img:.3f} s per image, "
           f"{a.threads} threads); final epoch loss {hist.epoch_loss[-1]:.4f}", file=log)
@@ -223,6 +233,7 @@ def run(a: argparse.Namespace) -> dict:
             "optimizer": a.optimizer,
             "loss": a.loss,
             "pos_weight": a.pos_weight if a.loss == "weighted" else None,
+            "neg_weight": a.neg_weight if a.loss == "weighted" else None,
             "seed": a.seed,
             "holdout": holdout,
             "per_category": a.per_category if holdout == "per-category" else None,

@@ -38,17 +38,24 @@ LOSSES = ("weighted", "paper")
 OPTIMIZERS = ("adam", "rmsprop")
 DEFAULT_POS_WEIGHT = 10.0
 """Weight of a positive pixel (target quality > 0) relative to a negative one."""
+DEFAULT_NEG_WEIGHT = 1.0
+"""Weight of the quality term at a labelled failure (``negative_map``) relative to an
+unlabelled pixel; 1 = failures count as any other pixel without a positive label."""
 
 
 def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
-               pos_weight: float = DEFAULT_POS_WEIGHT) -> torch.Tensor:
-    """The grasp loss over the four maps; ``targets`` is (N, 4, H, W) = quality, cos 2θ,
-    sin 2θ, width.
+               pos_weight: float = DEFAULT_POS_WEIGHT, neg_weight: float = DEFAULT_NEG_WEIGHT
+               ) -> torch.Tensor:
+    """The grasp loss over the four maps; ``targets`` is (N, 4 or 5, H, W) = quality, cos 2θ,
+    sin 2θ, width and optionally the negative mask (``GraspDataset`` gives all five).
 
-    ``"paper"``: the paper's sum over the four maps of the plain mean smooth-L1 loss.
+    ``"paper"``: the paper's sum over the four maps of the plain mean smooth-L1 loss (the
+    negative mask is ignored).
     ``"weighted"`` (the default; a departure from the paper): per-pixel weight
     w = 1 + (pos_weight - 1)·[target quality > 0], and each of the four terms is
-    Σ w·smoothL1 / Σ w — the angle and width terms are weighted too, not only quality.
+    Σ w·smoothL1 / Σ w — the angle and width terms are weighted too, not only quality. The
+    quality term alone weighs a pixel of the negative mask by ``neg_weight`` instead of 1
+    (w_q = w + (neg_weight - 1)·negative): a grasp known to fail there, not an untried spot.
     """
     if loss == "paper":
         return sum(F.smooth_l1_loss(m, targets[:, i]) for i, m in enumerate(maps))
@@ -56,10 +63,17 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
         raise ValueError(f"unknown loss {loss!r}: expected one of {LOSSES}")
     if not pos_weight > 0:
         raise ValueError(f"pos_weight must be positive, got {pos_weight}")
+    if not neg_weight > 0:
+        raise ValueError(f"neg_weight must be positive, got {neg_weight}")
     w = 1.0 + (pos_weight - 1.0) * (targets[:, 0] > 0).to(targets.dtype)
-    total_w = w.sum()
-    return sum((w * F.smooth_l1_loss(m, targets[:, i], reduction="none")).sum() / total_w
-               for i, m in enumerate(maps))
+    w_q = w
+    if targets.shape[1] > 4 and neg_weight != 1.0:
+        w_q = w + (neg_weight - 1.0) * targets[:, 4]
+    total = 0.0
+    for i, m in enumerate(maps):
+        wi = w_q if i == 0 else w
+        total = total + (wi * F.smooth_l1_loss(m, targets[:, i], reduction="none")).sum() / wi.sum()
+    return total
 
 
 def make_optimizer(name: str, params, lr: float) -> torch.optim.Optimizer:
@@ -84,10 +98,10 @@ class TrainHistory:
 def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, batch_size: int = 8,
                 lr: float = 1e-3, seed: int = 0, progress: ProgressFn | None = None,
                 start_epoch: int = 0, max_steps: int | None = None, loss: str = "weighted",
-                pos_weight: float = DEFAULT_POS_WEIGHT, optimizer: str = "adam"
-                ) -> TrainHistory:
+                pos_weight: float = DEFAULT_POS_WEIGHT, optimizer: str = "adam",
+                neg_weight: float = DEFAULT_NEG_WEIGHT) -> TrainHistory:
     """``optimizer`` (Adam by default, RMSprop = the paper) on ``grasp_loss(loss,
-    pos_weight)``; batch order seeded by (seed, epoch).
+    pos_weight, neg_weight)``; batch order seeded by (seed, epoch).
 
     The caller seeds torch before building the model (initial weights) and may make torch
     deterministic; with the same thread count the result is then bit-for-bit reproducible.
@@ -115,7 +129,7 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
             idx = order[b * batch_size:(b + 1) * batch_size].tolist()
             x, y, _ = dataset.batch(idx, epoch)
             opt.zero_grad(set_to_none=True)
-            value = grasp_loss(model(x), y, loss, pos_weight)
+            value = grasp_loss(model(x), y, loss, pos_weight, neg_weight)
             value.backward()
             opt.step()
             loss_value = value.item()
