@@ -205,8 +205,8 @@ fn features_are_unit_256d_rows_in_good_order_cached_per_checkpoint() {
 }
 
 /// Measured on this 2-core machine (release build, `lgdm train --scenario ni --encoder ae
-/// --trials 1` on the tiny dataset with the shipped checkpoint): test category accuracy 94.2 %
-/// (G-SM) and 96.7 % (G-EM), test instance accuracy 86.7 %; chance is 10 % and 5 % (an
+/// --trials 1` on the tiny dataset with the shipped checkpoint): test category accuracy 91.7 %
+/// (G-SM) and 91.7 % (G-EM), test instance accuracy 81.7 %; chance is 10 % and 5 % (an
 /// untrained checkpoint gives about that: 10 %, 11.7 %, 6.7 %). The floors leave a wide margin.
 #[test]
 fn train_ni_on_shipped_features_beats_chance_and_records_the_checkpoint() {
@@ -258,11 +258,11 @@ fn train_ni_on_shipped_features_beats_chance_and_records_the_checkpoint() {
     assert!(
         cat_sm >= 0.6 && cat_em >= 0.6,
         "test category accuracy G-SM {cat_sm}, G-EM {cat_em}: below the floor 0.6 (measured \
-         0.942, 0.967; chance 0.1)"
+         0.917, 0.917; chance 0.1)"
     );
     assert!(
         inst >= 0.4,
-        "test instance accuracy {inst}: below the floor 0.4 (measured 0.867; chance 0.05)"
+        "test instance accuracy {inst}: below the floor 0.4 (measured 0.817; chance 0.05)"
     );
     assert!(trial["episodic_nodes"].as_u64().unwrap() >= 20, "{trial}");
     let config = std::fs::read_to_string(run.join("config.toml")).unwrap();
@@ -358,8 +358,8 @@ fn without_ae_checkpoint_the_shipped_one_is_used() {
 /// named before any round runs.
 ///
 /// Measured on this 2-core machine (release build, `lgdm sim grasp --scenario isolated --grasp
-/// network --rounds 10 --seed 0`): 8/13 grasped, 8/10 objects cleared. The floor, 4 of 10, is
-/// half of that.
+/// network --rounds 10 --seed 0`): 10/11 grasped, 10/10 objects cleared. The floor, 4 of 10,
+/// is less than half of that.
 #[test]
 fn sim_grasp_network_plays_isolated_rounds() {
     let dir = work_dir().join("sim");
@@ -398,7 +398,7 @@ fn sim_grasp_network_plays_isolated_rounds() {
     assert_eq!(objects, 10);
     assert!(
         placed >= 4,
-        "the network's grasps cleared {placed}/10 objects, below the floor 4 (measured 8)"
+        "the network's grasps cleared {placed}/10 objects, below the floor 4 (measured 10)"
     );
     let mut tried = 0;
     for a in attempts {
