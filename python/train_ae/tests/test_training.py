@@ -240,6 +240,23 @@ def test_neg_weight_weighs_the_quality_term_at_labelled_failures():
         grasp_loss(maps, targets, neg_weight=0.0)
 
 
+def test_width_weight_scales_the_width_term_only():
+    torch.manual_seed(2)
+    targets = torch.zeros(2, 5, 8, 8)
+    targets[0, :4, 2, 3] = torch.tensor([1.0, 0.5, -0.5, 0.2])
+    maps = tuple(torch.randn(2, 8, 8) for _ in range(4))
+    base = float(grasp_loss(maps, targets))
+    no_width = (*maps[:3], targets[:, 3])  # a perfect width map: its term is 0
+    width_term = base - float(grasp_loss(no_width, targets))
+    assert width_term > 0
+    assert float(grasp_loss(maps, targets, width_weight=4.0)) == pytest.approx(
+        base + 3 * width_term, rel=1e-6)
+    assert float(grasp_loss(no_width, targets, width_weight=4.0)) == pytest.approx(
+        float(grasp_loss(no_width, targets)), rel=1e-6)
+    with pytest.raises(ValueError, match="width_weight"):
+        grasp_loss(maps, targets, width_weight=-1.0)
+
+
 @pytest.mark.parametrize(("optimizer", "loss"), [("rmsprop", "paper"), ("adam", "weighted")])
 def test_optimizers_and_losses_are_seeded(lgdm_dir, optimizer, loss):
     tiny = ModelConfig(name="tiny", input_size=48, channels=8, encoder_res_blocks=1,

@@ -2,7 +2,7 @@
 
     python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
         [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
-        [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1]
+        [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1] [--width-weight 1]
         [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
         [--val-fraction 0.1]
         [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
@@ -54,6 +54,7 @@ from .progress import ProgressBar
 from .training import (
     DEFAULT_NEG_WEIGHT,
     DEFAULT_POS_WEIGHT,
+    DEFAULT_WIDTH_WEIGHT,
     LOSSES,
     OPTIMIZERS,
     evaluate_model,
@@ -83,6 +84,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--pos-weight", type=float, default=DEFAULT_POS_WEIGHT,
                    help=f"weight of positive pixels for --loss weighted (default "
                         f"{DEFAULT_POS_WEIGHT:g})")
+    p.add_argument("--width-weight", type=float, default=DEFAULT_WIDTH_WEIGHT,
+                   help="factor on the width term of --loss weighted (default "
+                        f"{DEFAULT_WIDTH_WEIGHT:g})")
     p.add_argument("--neg-weight", type=float, default=DEFAULT_NEG_WEIGHT,
                    help="weight of the quality term at labelled failures (the negative "
                         "rectangles) for --loss weighted, relative to unlabelled pixels "
@@ -113,6 +117,8 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
         p.error("--pos-weight must be positive")
     if not a.neg_weight > 0:
         p.error("--neg-weight must be positive")
+    if not a.width_weight > 0:
+        p.error("--width-weight must be positive")
     if not 0 <= a.val_fraction < 1:
         p.error("--val-fraction must be in [0, 1)")
     if a.per_category < 0:
@@ -188,7 +194,8 @@ def run(a: argparse.Namespace) -> dict:
           file=log)
     print(f"optimizer {a.optimizer} lr {a.lr:g}, loss {a.loss}"
           + (f" (positives x{a.pos_weight:g}"
-             + (f", failures x{a.neg_weight:g}" if a.neg_weight != 1 else "") + ")"
+             + (f", failures x{a.neg_weight:g}" if a.neg_weight != 1 else "")
+             + (f", width term x{a.width_weight:g}" if a.width_weight != 1 else "") + ")"
              if a.loss == "weighted" else "")
           + f", batch {a.batch_size}, augment {'off' if a.no_augment else 'on'}", file=log)
     train_ds = GraspDataset(train_s, config.input_size, augment=not a.no_augment, seed=a.seed)
@@ -207,7 +214,7 @@ def run(a: argparse.Namespace) -> dict:
 
     hist = train_model(model, train_ds, a.epochs, a.batch_size, a.lr, a.seed, progress,
                        loss=a.loss, pos_weight=a.pos_weight, optimizer=a.optimizer,
-                       neg_weight=a.neg_weight)
+                       neg_weight=a.neg_weight, width_weight=a.width_weight)
     s_per_img = hist.seconds / max(hist.images, 1)
     print(f"trained {a.epochs} epochs in {hist.seconds:.1f} s ({s_per_img:.3f} s per image, "
           f"{a.threads} threads); final epoch loss {hist.epoch_loss[-1]:.4f}", file=log)
@@ -234,6 +241,7 @@ def run(a: argparse.Namespace) -> dict:
             "loss": a.loss,
             "pos_weight": a.pos_weight if a.loss == "weighted" else None,
             "neg_weight": a.neg_weight if a.loss == "weighted" else None,
+            "width_weight": a.width_weight if a.loss == "weighted" else None,
             "seed": a.seed,
             "holdout": holdout,
             "per_category": a.per_category if holdout == "per-category" else None,

@@ -41,11 +41,13 @@ DEFAULT_POS_WEIGHT = 10.0
 DEFAULT_NEG_WEIGHT = 1.0
 """Weight of the quality term at a labelled failure (``negative_map``) relative to an
 unlabelled pixel; 1 = failures count as any other pixel without a positive label."""
+DEFAULT_WIDTH_WEIGHT = 1.0
+"""Factor on the width term of the weighted loss (1: the four terms count alike)."""
 
 
 def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
-               pos_weight: float = DEFAULT_POS_WEIGHT, neg_weight: float = DEFAULT_NEG_WEIGHT
-               ) -> torch.Tensor:
+               pos_weight: float = DEFAULT_POS_WEIGHT, neg_weight: float = DEFAULT_NEG_WEIGHT,
+               width_weight: float = DEFAULT_WIDTH_WEIGHT) -> torch.Tensor:
     """The grasp loss over the four maps; ``targets`` is (N, 4 or 5, H, W) = quality, cos 2θ,
     sin 2θ, width and optionally the negative mask (``GraspDataset`` gives all five).
 
@@ -56,6 +58,8 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
     Σ w·smoothL1 / Σ w — the angle and width terms are weighted too, not only quality. The
     quality term alone weighs a pixel of the negative mask by ``neg_weight`` instead of 1
     (w_q = w + (neg_weight - 1)·negative): a grasp known to fail there, not an untried spot.
+    The width term is multiplied by ``width_weight``: the opening is what decides whether a
+    grasp on a lid or a rim holds, and its term is the smallest of the four.
     """
     if loss == "paper":
         return sum(F.smooth_l1_loss(m, targets[:, i]) for i, m in enumerate(maps))
@@ -65,6 +69,8 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
         raise ValueError(f"pos_weight must be positive, got {pos_weight}")
     if not neg_weight > 0:
         raise ValueError(f"neg_weight must be positive, got {neg_weight}")
+    if not width_weight > 0:
+        raise ValueError(f"width_weight must be positive, got {width_weight}")
     w = 1.0 + (pos_weight - 1.0) * (targets[:, 0] > 0).to(targets.dtype)
     w_q = w
     if targets.shape[1] > 4 and neg_weight != 1.0:
@@ -72,7 +78,8 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
     total = 0.0
     for i, m in enumerate(maps):
         wi = w_q if i == 0 else w
-        total = total + (wi * F.smooth_l1_loss(m, targets[:, i], reduction="none")).sum() / wi.sum()
+        term = (wi * F.smooth_l1_loss(m, targets[:, i], reduction="none")).sum() / wi.sum()
+        total = total + (width_weight * term if i == 3 else term)
     return total
 
 
@@ -99,9 +106,10 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
                 lr: float = 1e-3, seed: int = 0, progress: ProgressFn | None = None,
                 start_epoch: int = 0, max_steps: int | None = None, loss: str = "weighted",
                 pos_weight: float = DEFAULT_POS_WEIGHT, optimizer: str = "adam",
-                neg_weight: float = DEFAULT_NEG_WEIGHT) -> TrainHistory:
+                neg_weight: float = DEFAULT_NEG_WEIGHT,
+                width_weight: float = DEFAULT_WIDTH_WEIGHT) -> TrainHistory:
     """``optimizer`` (Adam by default, RMSprop = the paper) on ``grasp_loss(loss,
-    pos_weight, neg_weight)``; batch order seeded by (seed, epoch).
+    pos_weight, neg_weight, width_weight)``; batch order seeded by (seed, epoch).
 
     The caller seeds torch before building the model (initial weights) and may make torch
     deterministic; with the same thread count the result is then bit-for-bit reproducible.
@@ -129,7 +137,7 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
             idx = order[b * batch_size:(b + 1) * batch_size].tolist()
             x, y, _ = dataset.batch(idx, epoch)
             opt.zero_grad(set_to_none=True)
-            value = grasp_loss(model(x), y, loss, pos_weight, neg_weight)
+            value = grasp_loss(model(x), y, loss, pos_weight, neg_weight, width_weight)
             value.backward()
             opt.step()
             loss_value = value.item()
