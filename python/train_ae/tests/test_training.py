@@ -381,6 +381,33 @@ def test_several_directories_train_as_one_set(lgdm_dir, fixture_dir, tmp_path, c
     assert "given twice" in capsys.readouterr().err
 
 
+def test_repeat_shows_one_directorys_training_images_k_times(lgdm_dir, tmp_path, capsys):
+    """--repeat DIR=K multiplies that directory's training images only: held-out images are
+    scored once, the other directory's count is unchanged; a DIR not among --data is an error."""
+    second = write_synthetic_dataset(tmp_path / "second", objects=4, images_per_object=2,
+                                     seed=3, layout="lgdm", categories=2)
+    argv = ["--data", str(lgdm_dir), str(second), "--config", "cpu", "--epochs", "1",
+            "--batch-size", "4", "--threads", "1", "--quiet"]
+    plain, rep = tmp_path / "plain.pt", tmp_path / "rep.pt"
+    assert train_cli.main([*argv, "--out", str(plain)]) == 0
+    assert train_cli.main([*argv, "--out", str(rep), "--repeat", f"{second}=3"]) == 0
+    err = capsys.readouterr().err
+    t0 = load_checkpoint(plain)[1]["metrics"]
+    t1 = load_checkpoint(rep)[1]["metrics"]
+    held = set(t0["heldout"]["objects"])
+    second_train = sum(1 for s in find_samples(second) if s.object_id not in held)
+    assert second_train > 0
+    assert t1["training"]["train_images"] == t0["training"]["train_images"] + 2 * second_train
+    assert t1["training"]["repeat"] == {str(second): 3} and t0["training"]["repeat"] is None
+    assert t1["heldout"]["n"] == t0["heldout"]["n"]
+    assert f"({t0['training']['train_images']} distinct, --repeat)" in err
+    for bad in (f"{tmp_path}=2", f"{second}=0", f"{second}=two", "3"):
+        with pytest.raises(SystemExit):
+            train_cli.main([*argv, "--out", str(tmp_path / "x.pt"), "--repeat", bad])
+        assert "--repeat" in capsys.readouterr().err
+    assert not (tmp_path / "x.pt").exists()
+
+
 def test_init_starts_from_a_checkpoint(lgdm_dir, tmp_path, capsys):
     start = tmp_path / "start.pt"
     base = ["--data", str(lgdm_dir), "--config", "cpu", "--epochs", "1", "--batch-size", "4",

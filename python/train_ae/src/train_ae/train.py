@@ -4,6 +4,7 @@
         [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
         [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1] [--width-weight 1]
         [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
+        [--repeat DIR=K ...]
         [--val-fraction 0.1]
         [--object-map FILE] [--threads 2] [--no-augment] [--quiet]
 
@@ -24,6 +25,9 @@ instead of a seeded initialisation: a fine-tune; the checkpoint's file name and 
 recorded in the new one's metrics. A fine-tune holds out the objects its checkpoint held out
 (``--holdout init``, the default with ``--init``), so its held-out score is on objects neither
 stage trained on.
+
+``--repeat DIR=K`` shows the training images of one ``--data`` directory K times per epoch
+(e.g. the robot's own views among many geometric images); held-out images are scored once.
 
 Same seed and thread count (and ``--init`` file) -> same checkpoint bytes.
 """
@@ -105,8 +109,14 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (default 2)")
     p.add_argument("--no-augment", action="store_true",
                    help="no random shift, flip and rotation (zoom for non-square images)")
+    p.add_argument("--repeat", action="append", default=[], metavar="DIR=K",
+                   help="show the training images of --data DIR K times per epoch (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
+    try:
+        a.repeat = parse_repeats(a.repeat, a.data)
+    except ValueError as e:
+        p.error(str(e))
     if a.epochs < 1:
         p.error("--epochs must be at least 1")
     if a.batch_size < 1:
@@ -126,6 +136,41 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     if a.threads < 1:
         p.error("--threads must be at least 1")
     return a
+
+
+def parse_repeats(specs: list[str], data: list[Path]) -> dict[Path, int]:
+    """``--repeat DIR=K`` arguments as {directory: K}; each DIR must be one of ``data``."""
+    out: dict[Path, int] = {}
+    for spec in specs:
+        d, sep, k = spec.rpartition("=")
+        if not sep or not d:
+            raise ValueError(f"--repeat {spec!r}: expected DIR=K")
+        try:
+            times = int(k)
+        except ValueError:
+            raise ValueError(f"--repeat {spec!r}: K must be a whole number") from None
+        if times < 1:
+            raise ValueError(f"--repeat {spec!r}: K must be at least 1")
+        root = Path(d)
+        if root not in data:
+            raise ValueError(f"--repeat {spec!r}: {d} is not one of --data "
+                             f"{[str(x) for x in data]}")
+        if root in out:
+            raise ValueError(f"--repeat names {d} twice")
+        out[root] = times
+    return out
+
+
+def repeated(samples: list[Sample], repeats: dict[Path, int]) -> list[Sample]:
+    """``samples`` with those under a directory of ``repeats`` shown K times (in place: a
+    sample's copies follow it, so the order and thus the seeded batches stay reproducible)."""
+    if not repeats:
+        return samples
+    out: list[Sample] = []
+    for s in samples:
+        k = next((k for d, k in repeats.items() if s.rgb_path.is_relative_to(d)), 1)
+        out.extend([s] * k)
+    return out
 
 
 def held_out_by(start: tuple | None) -> list[str] | None:
@@ -170,6 +215,8 @@ def run(a: argparse.Namespace) -> dict:
         train_s, held_s = split_held_out_instances(samples, a.per_category, a.seed)
     else:
         train_s, held_s = split_by_object(samples, a.val_fraction, a.seed)
+    distinct = len(train_s)
+    train_s = repeated(train_s, a.repeat)
     config = dataclasses.replace(ModelConfig.preset(a.config), jaw_side_fraction=jaw_fraction)
     model = GraspAutoencoder(config)
     init = None
@@ -190,7 +237,9 @@ def run(a: argparse.Namespace) -> dict:
     print(f"config {config.name}: {parameter_count(model):,} parameters, input "
           f"{config.input_size}x{config.input_size}; {jaw_txt}", file=log)
     print(f"held out ({holdout}): {len(held_s)} images of {len(held_objects)} objects "
-          f"{held_objects}; training: {len(train_s)} images of {len(train_objects)} objects",
+          f"{held_objects}; training: {len(train_s)} images"
+          + (f" ({distinct} distinct, --repeat)" if len(train_s) != distinct else "")
+          + f" of {len(train_objects)} objects",
           file=log)
     print(f"optimizer {a.optimizer} lr {a.lr:g}, loss {a.loss}"
           + (f" (positives x{a.pos_weight:g}"
@@ -251,6 +300,7 @@ def run(a: argparse.Namespace) -> dict:
             "threads": a.threads,
             "train_objects": train_objects,
             "train_images": len(train_s),
+            "repeat": {str(d): k for d, k in a.repeat.items()} or None,
             "epoch_loss": hist.epoch_loss,
         },
         "heldout": heldout,
