@@ -130,3 +130,33 @@ def test_make_default_fine_tunes_on_the_robots_data(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         make_default.main([*argv, "--init", str(tmp_path / "none.pt")])
     assert e.value.code == 2 and "none.pt does not exist" in capsys.readouterr().err
+
+
+def test_make_default_adds_generator_seeds_and_repeats_the_robots_images(tmp_path, capsys):
+    """--more-seeds K adds gen-dataset runs of seeds S+1..S+K to the fine-tune's data;
+    --robot-repeat R shows the robot's two sets R times per epoch (train_ae --repeat)."""
+    from train_ae import make_default
+
+    fake = _fake_lgdm(tmp_path)
+    work, out = tmp_path / "w", tmp_path / "ckpt.pt"
+    argv = ["--lgdm", str(fake), "--work", str(work), "--out", str(out), "--epochs", "1",
+            "--images", "8", "--robot-scenes", "5", "--ycb-scenes", "3", "--finetune-epochs",
+            "1", "--quiet", "--seed", "3", "--more-seeds", "2", "--more-images", "6",
+            "--robot-repeat", "2"]
+    assert make_default.main(argv) == 0
+    err = capsys.readouterr().err
+    for seed in (4, 5):
+        assert (f"$ {fake} gen-dataset --preset paper --frames 1 --grasp-images 6 --seed {seed} "
+                f"--out {work / f'data-seed{seed}'} --progress none") in err
+    t = load_checkpoint(out)[1]["metrics"]["training"]
+    assert t["data"] == [str(work / "robot"), str(work / "data" / "grasp"),
+                         str(work / "robot-ycb"), str(work / "data-seed4" / "grasp"),
+                         str(work / "data-seed5" / "grasp")]
+    assert t["repeat"] == {str(work / "robot"): 2, str(work / "robot-ycb"): 2}
+    assert make_default.main([*argv, "--skip-data", "--init", str(out),
+                              "--out", str(tmp_path / "again.pt")]) == 0
+    assert capsys.readouterr().err.count("skipped") == 6
+    for bad in (["--more-seeds", "-1"], ["--robot-repeat", "0"], ["--more-images", "0"]):
+        with pytest.raises(SystemExit) as e:
+            make_default.main([*argv, *bad])
+        assert e.value.code == 2

