@@ -91,8 +91,10 @@ def commands(lgdm: Path, work: Path, out: Path, preset: str, images: int, epochs
 def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: int,
                    ycb_scenes: int, finetune_epochs: int, seed: int, threads: int,
                    neg_weight: float = DEFAULTS["neg_weight"], preset: str = DEFAULTS["preset"],
-                   more_seeds: int = 0, more_images: int = DEFAULTS["more_images"],
-                   robot_repeat: int = 1) -> tuple[list[list[str]], list[str]]:
+                   more_seeds: int = DEFAULTS["more_seeds"],
+                   more_images: int = DEFAULTS["more_images"],
+                   robot_repeat: int = DEFAULTS["robot_repeat"]
+                   ) -> tuple[list[list[str]], list[str]]:
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
     data = [[str(lgdm), "sim", "grasp-data", "--out", str(robot), "--scenes", str(robot_scenes),
