@@ -352,10 +352,11 @@ fn without_ae_checkpoint_the_shipped_one_is_used() {
 }
 
 /// `lgdm sim grasp --grasp network` with the shipped checkpoint: results.json names the source,
-/// every attempt tried a network grasp (crop pixels, a positive opening inside the crop, jaw =
-/// the finger width in the 224-px crop, a plan within the gripper's stroke) or failed with
-/// `no_grasp_found`, and the grasps clear a floor of the objects; a missing `--ae-checkpoint` is
-/// named before any round runs.
+/// its proposals were checked against the depth (`refine-first`, the network's default) and
+/// counted, every attempt tried a network grasp (crop pixels, a positive opening inside the
+/// crop, jaw = the finger width in the 224-px crop, a plan within the gripper's stroke) or
+/// failed with `no_grasp_found`, and the grasps clear a floor of the objects; a missing
+/// `--ae-checkpoint` is named before any round runs.
 ///
 /// Measured on this 2-core machine (release build, `lgdm sim grasp --scenario isolated --grasp
 /// network --rounds 10 --seed 0`): 10/11 grasped, 10/10 objects cleared. The floor, 4 of 10,
@@ -389,6 +390,17 @@ fn sim_grasp_network_plays_isolated_rounds() {
     let results: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     assert_eq!(results["run"]["grasp_source"], "network");
+    // The network source's own proposal check, recorded as resolved, and its count.
+    assert_eq!(
+        results["config"]["attempt"]["proposal_check"],
+        "refine-first"
+    );
+    let proposals = &results["summary"]["proposals"];
+    assert!(proposals["checked"].as_u64().unwrap() > 0, "{proposals}");
+    assert!(
+        proposals["check_refused"].as_u64().unwrap() <= proposals["checked"].as_u64().unwrap(),
+        "{proposals}"
+    );
     let attempts = results["attempts"].as_array().unwrap();
     assert!(!attempts.is_empty(), "no attempt in 10 rounds");
     assert_eq!(results["summary"]["attempts"], attempts.len());

@@ -5,7 +5,9 @@ This is how you try your own network (GG-CNN, GR-ConvNet, …): a callable gets 
 object-centred crop and returns grasps in crop pixels. Here the network's four maps are decoded
 by :func:`lgdm.sim.decode_grasps`, the Rust decoder ``lgdm sim grasp --grasp network`` uses, so
 this script gives the robot the same grasps as that command (an ``ae`` build of ``lgdm``) and the
-same counts for the same seed (``examples/python/test_network_grasps.py`` checks it).
+same counts for the same seed (``examples/python/test_network_grasps.py`` checks it), checked
+against the depth as that command checks the network's (``proposal_check="refine-first"``, the
+network source's default; a callable's own default is ``"contacts"``: its grasps as they come).
 
     OMP_NUM_THREADS=1 python examples/python/network_grasps.py --rounds 20 --seed 0
 
@@ -54,6 +56,12 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint", help="default: the shipped cpu.pt")
     p.add_argument("--out", help="write the run directory here")
+    p.add_argument(
+        "--proposal-check",
+        default="refine-first",
+        choices=["contacts", "antipodal", "refine", "refine-first"],
+        help="how the robot checks each proposal against the depth (default: refine-first)",
+    )
     args = p.parse_args()
     network = NetworkGrasps(args.checkpoint)
     result = lgdm.sim.grasp(
@@ -61,6 +69,7 @@ def main() -> None:
         grasp=network,
         rounds=args.rounds,
         seed=args.seed,
+        proposal_check=args.proposal_check,
         out=args.out,
     )
     s = result["summary"]

@@ -41,7 +41,14 @@ def test_the_callable_gives_the_grasps_of_grasp_network(
     )
     cli = json.loads((out / "results.json").read_text())
     network = NetworkGrasps()
-    py = lgdm.sim.grasp(scenario=scenario, grasp=network, rounds=rounds, seed=seed)
+    # The network source's default check; a Python callable's is `contacts`.
+    py = lgdm.sim.grasp(
+        scenario=scenario,
+        grasp=network,
+        rounds=rounds,
+        seed=seed,
+        proposal_check="refine-first",
+    )
     assert network.calls >= rounds and py["attempts"]
     assert _attempts(py) == _attempts(cli)
     for rate in ("grasp_success_rate", "placement_success_rate", "cleared_fraction"):

@@ -9,9 +9,10 @@ use std::time::Instant;
 use lgdm_pointcloud::crop::{CropSpec, FoundObject, crop_largest_object};
 use lgdm_pointcloud::grasp::analytic::{
     AnalyticError, AnalyticGrasp, AnalyticParams, analytic_grasps, analytic_grasps_detailed,
+    check_proposals,
 };
 use lgdm_pointcloud::grasp::cornell::table_mesh;
-use lgdm_pointcloud::grasp::decode::{GraspDecodeParams, grasp_pose};
+use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams, grasp_pose};
 use lgdm_pointcloud::grasp::{GraspScene, GraspSpec, GraspVerdict, evaluate_grasp, grasp_scene};
 use lgdm_pointcloud::math::{Pose, look_at, normalize, rotate_vector, transform_point};
 use lgdm_pointcloud::mesh::Mesh;
@@ -418,4 +419,79 @@ fn same_input_gives_bit_identical_grasps() {
         assert!(!first.is_empty());
         assert_eq!(bits(&first), bits(&again), "{category}");
     }
+}
+
+#[test]
+fn another_sources_proposals_are_checked_and_refined_at_their_own_centre_and_axis() {
+    let spec = GraspSpec::default();
+    let params = AnalyticParams::default();
+    // 12 cm × 6 cm × 6 cm: graspable across its 6 cm depth (image y), not along its length.
+    let narrow = Mesh::cuboid([0.0, 0.0, 0.03], [0.12, 0.06, 0.06], [200, 60, 60]);
+    let (camera, found) = top_down(Some(&narrow));
+    let c = (found.crop.size_px as f32 - 1.0) / 2.0;
+    let proposal = |dx: f32, dy: f32, angle_deg: f32, width_px: f32| DecodedGrasp {
+        center_px: [c + dx, c + dy],
+        angle: angle_deg.to_radians(),
+        width_px,
+        jaw_px: 20.0,
+        quality: 0.7,
+    };
+    let proposals = [
+        proposal(0.0, 0.0, 90.0, 40.0),  // across the depth: holds
+        proposal(0.0, 0.0, 0.0, 80.0),   // along the 12 cm length: wider than the stroke
+        proposal(30.0, 9.0, 84.0, 90.0), // across, off-centre and a little skewed
+    ];
+    let checked = check_proposals(
+        &found.crop,
+        &camera.intrinsics,
+        &spec,
+        &params,
+        &proposals,
+        false,
+    )
+    .unwrap();
+    assert_eq!(checked.len(), 3);
+    assert_eq!(checked[0], Some(proposals[0]), "unchanged when it passes");
+    assert_eq!(checked[1], None, "the long axis is refused");
+    assert!(checked[2].is_some(), "{checked:?}");
+    let refined = check_proposals(
+        &found.crop,
+        &camera.intrinsics,
+        &spec,
+        &params,
+        &proposals,
+        true,
+    )
+    .unwrap();
+    assert_eq!(refined[1], None);
+    // The analytic source's own grasp across the box: its opening is the box's 6 cm depth.
+    let own = analytic_grasps_detailed(&found.crop, &camera.intrinsics, &spec, &params).unwrap()[0];
+    assert!((own.opening_m - 0.06).abs() < 0.003, "{own:?}");
+    for g in [refined[0].unwrap(), refined[2].unwrap()] {
+        // Moved onto the box's long axis, squared to its walls, opened as the analytic source
+        // opens across the box, the proposal's quality (rank) kept.
+        assert!((g.center_px[1] - c).abs() < 3.0, "{g:?}");
+        assert!(g.angle.abs() > 88f32.to_radians(), "{g:?}");
+        assert!(
+            (g.width_px - own.grasp.width_px).abs() < 2.0,
+            "{g:?} {own:?}"
+        );
+        assert_eq!(g.quality, 0.7);
+    }
+    // The off-centre one stays within the neighbourhood searched (6 mm ≈ 7 px at the box's
+    // top) of where it was along the box.
+    let along = refined[2].unwrap().center_px[0] - (c + 30.0);
+    assert!(along.abs() <= 8.0, "{along}");
+    // Nothing to check against: every proposal fails.
+    let (camera, empty) = top_down(None);
+    let none = check_proposals(
+        &empty.crop,
+        &camera.intrinsics,
+        &spec,
+        &params,
+        &proposals,
+        true,
+    )
+    .unwrap();
+    assert_eq!(none, vec![None; 3]);
 }

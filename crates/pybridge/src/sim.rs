@@ -386,12 +386,13 @@ fn objects(
     Ok(ObjectSource::Meshes { dir, units })
 }
 
-/// The config: `config`'s file with `gripper`, `draw`, `shapes` on top.
+/// The config: `config`'s file with `gripper`, `draw`, `shapes`, `proposal_check` on top.
 fn config(
     file: Option<PathBuf>,
     gripper: Option<&str>,
     draw: Option<&str>,
     shapes: Option<&str>,
+    proposal_check: Option<&str>,
 ) -> PyResult<SimConfig> {
     fn parse<T: OptionValue>(word: Option<&str>) -> PyResult<Option<T>> {
         word.map(T::parse)
@@ -402,6 +403,7 @@ fn config(
         gripper: parse(gripper)?,
         draw: parse(draw)?,
         shapes: parse(shapes)?,
+        proposal_check: parse(proposal_check)?,
     };
     SimConfig::resolve(file.as_deref(), &overrides)
         .map_err(|e| errors::new(Kind::Config, format!("config {e}")))
@@ -492,7 +494,7 @@ fn play(
 /// `lgdm sim grasp`: returns results.json's text.
 #[pyfunction]
 #[pyo3(signature = (*, scenario_name, grasp, rounds, seed, instances, meshes, units, config_file,
-    gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
+    gripper, draw, shapes, proposal_check, out, force, record_all, record_rounds, progress))]
 #[allow(clippy::too_many_arguments)]
 pub fn sim_grasp(
     py: Python<'_>,
@@ -507,6 +509,7 @@ pub fn sim_grasp(
     gripper: Option<&str>,
     draw: Option<&str>,
     shapes: Option<&str>,
+    proposal_check: Option<&str>,
     out: Option<PathBuf>,
     force: bool,
     record_all: bool,
@@ -522,7 +525,7 @@ pub fn sim_grasp(
             &units,
             ObjectSource::Procedural { instances, seed },
         )?),
-        config: config(config_file, gripper, draw, shapes)?,
+        config: config(config_file, gripper, draw, shapes, proposal_check)?,
         record: record(record_all, record_rounds),
         out: out.map(|dir| Output { dir, force }),
         ae_checkpoint: None,
@@ -543,7 +546,7 @@ pub fn sim_grasp(
 #[pyfunction]
 #[pyo3(signature = (*, scenario_name, grasp, rounds, attempts, seed, objects_n, object_seed,
     meshes, units, model, replay, learn_always, encoder, confidence, targets, arrive_after,
-    config_file, gripper, draw, shapes, out, force, record_all, record_rounds, progress))]
+    config_file, gripper, draw, shapes, proposal_check, out, force, record_all, record_rounds, progress))]
 #[allow(clippy::too_many_arguments)]
 pub fn sim_pick_place(
     py: Python<'_>,
@@ -567,6 +570,7 @@ pub fn sim_pick_place(
     gripper: Option<&str>,
     draw: Option<&str>,
     shapes: Option<&str>,
+    proposal_check: Option<&str>,
     out: Option<PathBuf>,
     force: bool,
     record_all: bool,
@@ -625,7 +629,7 @@ pub fn sim_pick_place(
         encoder: encoder_id,
         targets,
         arrive_after,
-        config: config(config_file, gripper, draw, shapes)?,
+        config: config(config_file, gripper, draw, shapes, proposal_check)?,
         record: record(record_all, record_rounds),
         out: out.map(|dir| Output { dir, force }),
         ae_checkpoint: None,

@@ -193,24 +193,25 @@ def test_keywords_are_the_command_lines_options(command: str, function):
     assert keywords == options, f"Python only: {keywords - options}, CLI only: {options - keywords}"
 
 
-@pytest.mark.parametrize("option", ["gripper", "draw", "shapes"])
+@pytest.mark.parametrize("option", ["gripper", "draw", "shapes", "proposal_check"])
 def test_typed_words_are_the_command_lines(option: str):
-    """The `Literal` words of `gripper`, `draw` and `shapes` are the ones `lgdm_sim` spells (the
-    CLI's possible values, from `OptionValue`)."""
+    """The `Literal` words of `gripper`, `draw`, `shapes` and `proposal_check` are the ones
+    `lgdm_sim` spells (the CLI's possible values, from `OptionValue`)."""
+    flag = option.replace("_", "-")
     cli = _find_cli()
     if cli is None:
         pytest.skip("the lgdm binary is not built (cargo build --release -p lgdm-cli)")
     text = subprocess.run(
         [str(cli), "sim", "pick-place", "--help"], capture_output=True, text=True, check=True
     ).stdout
-    block = re.search(rf"--{option} <\w+>\n(.*?)\n\n\s+--", text, re.S)
+    block = re.search(rf"--{flag} <\w+>\n(.*?)\n\n\s+--", text, re.S)
     assert block, text
     words = re.findall(r"^\s+- ([\w-]+):", block.group(1), re.M)
     for function in (lgdm.sim.grasp, lgdm.sim.pick_place, lgdm.sim.packing):
         hint = typing.get_type_hints(function)[option]
         (literal,) = [a for a in typing.get_args(hint) if typing.get_origin(a) is typing.Literal]
         assert sorted(typing.get_args(literal)) == sorted(words), function.__name__
-        with pytest.raises(lgdm.ConfigError, match=f"{option}: unknown `nope`"):
+        with pytest.raises(lgdm.ConfigError, match=f"{flag}: unknown `nope`"):
             targets = {"targets": ["mug"]} if function is lgdm.sim.packing else {}
             function(**targets, **{option: "nope"}, rounds=1)
 

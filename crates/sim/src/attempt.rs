@@ -147,6 +147,53 @@ pub struct AttemptConfig {
     /// network's input pixels, smoothing; default: train_ae's decoding; the jaw and the count
     /// are the checkpoint's and the scenario's).
     pub decode: GraspDecodeParams,
+    /// How a source's proposals are checked against the close-up's depth before the robot
+    /// plans them (default: unset, the source's own default,
+    /// [`crate::source::GraspSource::proposal_check`] — `contacts`, only the planner's check
+    /// that both pads close on something ([`GraspPlan::reaches_contacts`], which every plan
+    /// gets whatever this says), for all but the network). A run's results record the check
+    /// it used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub proposal_check: Option<ProposalCheck>,
+}
+
+/// How a grasp source's proposals are checked against the close-up's depth before they are
+/// planned ([`crate::runner::ranked_grasps`]); the planner's contact check
+/// ([`GraspPlan::reaches_contacts`]) follows in every case. A proposal that fails is dropped
+/// and the next one taken — never another source's grasp.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProposalCheck {
+    /// No check before planning (the planner's contact check only).
+    #[default]
+    Contacts,
+    /// The analytic source's test at the proposal's own centre and axis
+    /// ([`lgdm_pointcloud::grasp::analytic::check_proposals`]): fingers closing from the full
+    /// opening meet material on both sides within the friction cone, both finger lanes clear,
+    /// the jaw covered, the palm clear. A proposal that passes is tried as proposed.
+    Antipodal,
+    /// As `antipodal`, and a proposal that passes is moved to its contacts' midpoint, its axis
+    /// squared to the contact walls and its opening set to the contacts' distance (the
+    /// proposal chooses where and which way; the depth, how wide).
+    Refine,
+    /// As `refine`, but the proposals the check refuses are not dropped: they follow the
+    /// refined ones, as proposed and in their order (the planner's contact check still applies).
+    /// Where the depth test finds nothing (flat or thin objects the analytic source cannot
+    /// grasp either) the proposals are tried as they are.
+    #[serde(rename = "refine-first")]
+    RefineFirst,
+}
+
+impl ProposalCheck {
+    /// The word the option and the config spell.
+    pub fn word(self) -> &'static str {
+        match self {
+            ProposalCheck::Contacts => "contacts",
+            ProposalCheck::Antipodal => "antipodal",
+            ProposalCheck::Refine => "refine",
+            ProposalCheck::RefineFirst => "refine-first",
+        }
+    }
 }
 
 impl Default for AttemptConfig {
@@ -191,6 +238,7 @@ impl Default for AttemptConfig {
             release_wait_s: 0.3,
             release_settles: 3,
             decode: GraspDecodeParams::default(),
+            proposal_check: None,
         }
     }
 }

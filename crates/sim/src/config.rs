@@ -13,7 +13,7 @@ use std::path::Path;
 use lgdm_pointcloud::grasp::GraspSpec;
 use serde::{Deserialize, Serialize};
 
-use crate::attempt::AttemptConfig;
+use crate::attempt::{AttemptConfig, ProposalCheck};
 use crate::camera::{CameraConfig, ObjectDrawing};
 use crate::gripper::{GripperConfig, GripperModel};
 use crate::robot::RobotConfig;
@@ -87,6 +87,38 @@ impl OptionValue for ObjectDrawing {
     }
 }
 
+impl OptionValue for ProposalCheck {
+    const OPTION: &'static str = "proposal-check";
+    const ALL: &'static [Self] = &[
+        ProposalCheck::Contacts,
+        ProposalCheck::Antipodal,
+        ProposalCheck::Refine,
+        ProposalCheck::RefineFirst,
+    ];
+    fn word(self) -> &'static str {
+        ProposalCheck::word(self)
+    }
+    fn help(self) -> &'static str {
+        match self {
+            ProposalCheck::Contacts => {
+                "Only the planner's check that both pads close on something (default)"
+            }
+            ProposalCheck::Antipodal => {
+                "Also the analytic source's test at each proposal's centre and axis (friction \
+                 cone, finger lanes, palm); a proposal that passes is tried as proposed"
+            }
+            ProposalCheck::Refine => {
+                "As antipodal, and each proposal that passes is moved to its contacts' \
+                 midpoint, squared to the walls and opened to their distance"
+            }
+            ProposalCheck::RefineFirst => {
+                "As refine, but the refused proposals follow the refined ones as proposed \
+                 instead of being dropped"
+            }
+        }
+    }
+}
+
 impl OptionValue for ObjectShape {
     const OPTION: &'static str = "shapes";
     const ALL: &'static [Self] = &[ObjectShape::Hull, ObjectShape::Decomposition];
@@ -117,6 +149,8 @@ pub struct ConfigOverrides {
     pub draw: Option<ObjectDrawing>,
     /// The objects' collider shapes.
     pub shapes: Option<ObjectShape>,
+    /// How grasp proposals are checked before planning.
+    pub proposal_check: Option<ProposalCheck>,
 }
 
 /// Every constant of a sim run. Defaults are each part's.
@@ -169,6 +203,9 @@ impl SimConfig {
         }
         if let Some(shape) = overrides.shapes {
             config.shapes.shape = shape;
+        }
+        if let Some(check) = overrides.proposal_check {
+            config.attempt.proposal_check = Some(check);
         }
         if let Some(path) = file {
             config

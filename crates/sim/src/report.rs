@@ -96,6 +96,15 @@ pub fn summary_table(r: &RunResults) -> String {
         "grasp proposals refused before a try (a pad would close on air): {} of {} planned",
         s.proposals.refused, s.proposals.planned
     );
+    if s.proposals.checked > 0 {
+        let _ = writeln!(
+            out,
+            "grasp proposals refused by the depth check ({}) before planning: {} of {} checked",
+            r.config.attempt.proposal_check.unwrap_or_default().word(),
+            s.proposals.check_refused,
+            s.proposals.checked
+        );
+    }
     let w = &r.wall;
     let a = &w.attempts;
     let pct = |x: f64| {

@@ -229,6 +229,13 @@ pub struct Proposals {
     pub planned: usize,
     /// Of those, refused.
     pub refused: usize,
+    /// Proposals checked against the close-up's depth before planning (`[attempt]
+    /// proposal_check` other than `contacts`; 0 otherwise).
+    #[serde(default)]
+    pub checked: usize,
+    /// Of those, refused by that check (and never planned).
+    #[serde(default)]
+    pub check_refused: usize,
 }
 
 impl Proposals {
@@ -309,6 +316,8 @@ pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bo
         proposals: Proposals {
             planned: attempts.iter().map(|a| a.proposals.planned).sum(),
             refused: attempts.iter().map(|a| a.proposals.refused).sum(),
+            checked: attempts.iter().map(|a| a.proposals.checked).sum(),
+            check_refused: attempts.iter().map(|a| a.proposals.check_refused).sum(),
         },
         packing: packing.then(|| {
             let packed: Vec<(Option<&str>, &PackingRecord)> = attempts

@@ -39,6 +39,7 @@ use std::time::Instant;
 use lgdm_base::Progress;
 use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::grasp::GraspSpec;
+use lgdm_pointcloud::grasp::analytic::check_proposals;
 use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams};
 use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
@@ -48,7 +49,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::arrival::{ArrivalRun, Evaluation};
-use crate::attempt::{AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp};
+use crate::attempt::{
+    AttemptConfig, Cell, Execution, FailureReason, ProposalCheck, execute, park, plan_grasp,
+};
 use crate::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
 use crate::packing::BasketChoice;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
@@ -59,7 +62,7 @@ use crate::results::{
 };
 use crate::scenario::{PlacedObject, Scenario, on_table, round_objects_among, set_table};
 use crate::shapes::LibraryShapes;
-use crate::source::{GraspQuery, GraspSource, SourceError};
+use crate::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
 use crate::spec::{RunSpec, SimError, TAG_ROUND};
 use crate::timing::{WallTimes, Work};
 use crate::world::{ObjectHandle, World};
@@ -374,9 +377,13 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let fallbacks = &self.spec.config.attempt.fallback_openings_m;
         let gripper = &self.gripper;
         let decode = &self.spec.config.attempt.decode;
-        let grasps = clock.wall.time(Work::Source, || {
-            ranked_grasps(source, view, gripper, k, fallbacks, decode)
+        let check = self.spec.config.attempt.proposal_check.unwrap_or_default();
+        let checked = clock.wall.time(Work::Source, || {
+            checked_grasps(source, view, gripper, k, fallbacks, decode, check)
         })?;
+        clock.proposals.checked += checked.checked;
+        clock.proposals.check_refused += checked.refused;
+        let grasps = checked.grasps;
         Ok(clock.wall.time(Work::Perception, || {
             grasps
                 .iter()
@@ -947,6 +954,17 @@ pub(crate) fn play(
     checkpoint: Checkpoint<'_>,
 ) -> Result<RunResults, SimError> {
     let start = Instant::now();
+    // An unset proposal check is the source's own (recorded in the results as resolved).
+    let resolved;
+    let spec = match spec.config.attempt.proposal_check {
+        Some(_) => spec,
+        None => {
+            let mut s = spec.clone();
+            s.config.attempt.proposal_check = Some(source.proposal_check());
+            resolved = s;
+            &resolved
+        }
+    };
     let labels = recognizer.as_deref().map(Recognizer::labels);
     // Shapes given come from `prepare_shapes` on this spec (a job's), which validated it.
     let shapes = match shapes {
@@ -1121,6 +1139,98 @@ pub fn ranked_grasps(
         )?;
     }
     Ok(grasps)
+}
+
+/// Proposals a source is asked for, per grasp wanted, when they are checked before planning
+/// ([`checked_grasps`]): room for the check to refuse some.
+pub const CHECK_POOL: usize = 4;
+
+/// What [`checked_grasps`] found.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckedGrasps {
+    /// At most `k` grasps that passed, best first (refined ones as refined).
+    pub grasps: Vec<DecodedGrasp>,
+    /// Proposals the check looked at.
+    pub checked: usize,
+    /// Of those, refused.
+    pub refused: usize,
+}
+
+/// [`ranked_grasps`] with each proposal checked against the close-up's depth as `check` says
+/// ([`ProposalCheck`]): the source is asked for `k ×` [`CHECK_POOL`] proposals, they are checked
+/// in rank order ([`check_proposals`] with the analytic source's parameters) and the first `k`
+/// that pass are kept, in their order (`refine-first`: followed by the refused ones as
+/// proposed). When none is kept for the full stroke, the source is asked again for each of
+/// `fallback_openings_m` as [`ranked_grasps`] does. `contacts` is [`ranked_grasps`] itself
+/// (nothing checked).
+#[allow(clippy::too_many_arguments)]
+pub fn checked_grasps(
+    source: &mut dyn GraspSource,
+    view: &ObjectView,
+    gripper: &GraspSpec,
+    k: usize,
+    fallback_openings_m: &[f32],
+    decode: &GraspDecodeParams,
+    check: ProposalCheck,
+) -> Result<CheckedGrasps, SourceError> {
+    let refine = match check {
+        ProposalCheck::Contacts => {
+            let grasps = ranked_grasps(source, view, gripper, k, fallback_openings_m, decode)?;
+            return Ok(CheckedGrasps {
+                grasps,
+                ..CheckedGrasps::default()
+            });
+        }
+        ProposalCheck::Antipodal => false,
+        ProposalCheck::Refine | ProposalCheck::RefineFirst => true,
+    };
+    let keep_refused = check == ProposalCheck::RefineFirst;
+    let params = AnalyticSource::new().params;
+    let mut out = CheckedGrasps::default();
+    let full = std::iter::once(gripper.max_opening_m);
+    let narrower = fallback_openings_m
+        .iter()
+        .copied()
+        .filter(|w| *w < gripper.max_opening_m);
+    for opening in full.chain(narrower) {
+        let spec = GraspSpec {
+            max_opening_m: opening,
+            ..*gripper
+        };
+        let query = GraspQuery {
+            crop: &view.crop,
+            intrinsics: &view.shot.camera.intrinsics,
+            gripper: &spec,
+            decode,
+        };
+        let proposals = source.grasps(&query, k.saturating_mul(CHECK_POOL))?;
+        let passed = check_proposals(
+            &view.crop,
+            &view.shot.camera.intrinsics,
+            &spec,
+            &params,
+            &proposals,
+            refine,
+        )?;
+        out.checked += passed.len();
+        out.refused += passed.iter().filter(|g| g.is_none()).count();
+        let refused = proposals
+            .iter()
+            .zip(&passed)
+            .filter(|(_, g)| keep_refused && g.is_none())
+            .map(|(p, _)| *p);
+        out.grasps = passed
+            .iter()
+            .flatten()
+            .copied()
+            .chain(refused)
+            .take(k)
+            .collect();
+        if !out.grasps.is_empty() {
+            break;
+        }
+    }
+    Ok(out)
 }
 
 /// The library indices of round `round`'s objects: drawn from the whole library, or from the

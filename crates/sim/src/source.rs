@@ -50,6 +50,8 @@ use lgdm_pointcloud::render::Intrinsics;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::attempt::ProposalCheck;
+
 /// What a grasp source is asked about: one object-centred crop.
 #[derive(Debug, Clone, Copy)]
 pub struct GraspQuery<'a> {
@@ -118,6 +120,13 @@ pub trait GraspSource {
     /// Continues from a [`GraspSource::state`] of a source built the same way.
     fn restore(&mut self, _state: &serde_json::Value) -> Result<(), SourceError> {
         Ok(())
+    }
+
+    /// How the robot checks this source's proposals against the close-up's depth when the run
+    /// does not say ([`crate::attempt::AttemptConfig::proposal_check`]): `contacts` (nothing
+    /// before the planner's own check) by default.
+    fn proposal_check(&self) -> ProposalCheck {
+        ProposalCheck::Contacts
     }
 
     /// What a run records about the source beside its name (e.g. the network's checkpoint);

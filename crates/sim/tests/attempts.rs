@@ -1,21 +1,26 @@
 //! Grasp attempts end to end in the library: the analytic source grasps simple objects (cans,
 //! bottles, books, boxes, apples) in the isolated scenario at ≥ 60 % over ≥ 20 attempts and the
 //! random baseline does strictly worse; a placed object ends at rest inside the basket; closing
-//! on an empty spot is a miss; a plan whose pads would close on air is refused; packed and pile tables hold five objects; same seed → the same
-//! results bit for bit (wall-clock fields aside), another seed → other results.
+//! on an empty spot is a miss; a plan whose pads would close on air is refused; a proposal the
+//! depth check (`--proposal-check`) refuses is never planned; packed and pile tables hold five
+//! objects; same seed → the same results bit for bit (wall-clock fields aside), another seed →
+//! other results.
 //!
 //! Run in release (`cargo test -p lgdm-sim --release --test attempts`): physics in a debug build
 //! is two orders of magnitude slower.
 
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
-use lgdm_sim::attempt::{AttemptConfig, Cell, FailureReason, GraspPlan, execute, park, plan_grasp};
+use lgdm_sim::attempt::{
+    AttemptConfig, Cell, FailureReason, GraspPlan, ProposalCheck, execute, park, plan_grasp,
+};
 use lgdm_sim::perception::{Perception, WorldGrasp};
 use lgdm_sim::results::RunResults;
 use lgdm_sim::robot::RobotConfig;
-use lgdm_sim::runner::run_trials;
+use lgdm_sim::runner::{checked_grasps, run_trials};
 use lgdm_sim::scenario::{Scenario, ScenarioConfig, on_table, set_table};
-use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource};
+use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
 use lgdm_sim::spec::{RunSpec, builtin_source};
 use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
@@ -130,6 +135,103 @@ fn plans_that_close_on_air_are_refused() {
     };
     let bare = plan_grasp(&cell, &view, &beside, &config);
     assert!(!bare.reaches_contacts(&config), "{bare:?}");
+}
+
+/// Proposals given as they are (a stand-in for the network): the first `k` of `grasps`.
+struct Fixed(Vec<DecodedGrasp>);
+
+impl GraspSource for Fixed {
+    fn name(&self) -> &str {
+        "fixed"
+    }
+    fn grasps(&mut self, _: &GraspQuery<'_>, k: usize) -> Result<Vec<DecodedGrasp>, SourceError> {
+        Ok(self.0.iter().copied().take(k).collect())
+    }
+}
+
+/// `--proposal-check`: a proposal along a 16 cm box (no antipodal pair within the stroke) is
+/// refused by the depth check and the next one taken; `refine` moves an off-centre proposal
+/// across the box onto its middle line and opens it as the analytic source would; `contacts`
+/// passes every proposal through unchecked; `refine-first` tries the refused one after the
+/// refined one.
+#[test]
+fn proposals_are_checked_against_the_depth_before_planning() {
+    let mut world = World::new(WorldConfig::default()).unwrap();
+    let top = world.config().table.top_z_m();
+    let book =
+        lgdm_pointcloud::mesh::Mesh::cuboid([0.0, 0.0, 0.03], [0.16, 0.05, 0.06], [90, 90, 200]);
+    world
+        .spawn_object("box", &book, &translation([0.08, -0.55, top]))
+        .unwrap();
+    world.settle();
+    let cell = Cell::new(world, RobotConfig::default()).unwrap();
+    let perception = Perception::new(Default::default()).unwrap();
+    let scene = perception.look(&cell.world).unwrap();
+    let view = perception.close_up(&cell.world, &scene, 0).unwrap();
+    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    let query = GraspQuery {
+        crop: &view.crop,
+        intrinsics: &view.shot.camera.intrinsics,
+        gripper: &gripper,
+        decode: &Default::default(),
+    };
+    // The analytic source's best grasp (across the 5 cm side) gives the axis across the box.
+    let best = AnalyticSource::new().grasps(&query, 1).unwrap()[0];
+    let along = DecodedGrasp {
+        angle: best.angle + std::f32::consts::FRAC_PI_2,
+        width_px: 150.0,
+        quality: 0.9,
+        ..best
+    };
+    let (c, s) = (best.angle.cos(), -best.angle.sin());
+    // 25 px along the box (perpendicular to the grasp axis), 6 px off its middle line.
+    let off = DecodedGrasp {
+        center_px: [
+            best.center_px[0] - 25.0 * s + 6.0 * c,
+            best.center_px[1] + 25.0 * c + 6.0 * s,
+        ],
+        width_px: 100.0,
+        quality: 0.8,
+        ..best
+    };
+    let mut fixed = Fixed(vec![along, off]);
+    let ask = |fixed: &mut Fixed, check| {
+        checked_grasps(fixed, &view, &gripper, 1, &[], &Default::default(), check).unwrap()
+    };
+    let plain = ask(&mut fixed, ProposalCheck::Contacts);
+    assert_eq!(plain.grasps, vec![along]);
+    assert_eq!((plain.checked, plain.refused), (0, 0));
+    let antipodal = ask(&mut fixed, ProposalCheck::Antipodal);
+    assert_eq!(antipodal.grasps, vec![off], "{antipodal:?}");
+    assert_eq!((antipodal.checked, antipodal.refused), (2, 1));
+    let refined = ask(&mut fixed, ProposalCheck::Refine);
+    assert_eq!((refined.checked, refined.refused), (2, 1));
+    let g = refined.grasps[0];
+    // Back on the middle line (the analytic grasp's axis through the box), still along the box
+    // within the 6 mm (≈ 7 px at its top) the refinement searches of the proposed 25 px.
+    let d = [
+        g.center_px[0] - best.center_px[0],
+        g.center_px[1] - best.center_px[1],
+    ];
+    let across = d[0] * c + d[1] * s;
+    let lengthwise = -d[0] * s + d[1] * c;
+    assert!(across.abs() < 2.5, "{g:?} {best:?}");
+    assert!((lengthwise - 25.0).abs() <= 9.0, "{g:?} {best:?}");
+    assert!((g.width_px - best.width_px).abs() < 4.0, "{g:?} {best:?}");
+    assert_eq!(g.quality, 0.8);
+    // `refine-first` keeps the refused proposal, as proposed, after the refined one.
+    let first = checked_grasps(
+        &mut fixed,
+        &view,
+        &gripper,
+        2,
+        &[],
+        &Default::default(),
+        ProposalCheck::RefineFirst,
+    )
+    .unwrap();
+    assert_eq!(first.grasps, vec![g, along]);
+    assert_eq!((first.checked, first.refused), (2, 1));
 }
 
 /// One attempt through the library's parts: a can on the table, seen, grasped analytically,

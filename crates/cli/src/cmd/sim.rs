@@ -204,6 +204,7 @@ fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
         gripper: args.gripper,
         draw: args.draw,
         shapes: args.shapes,
+        proposal_check: args.proposal_check,
     };
     resolve_config(args.config.as_deref(), args.out.as_deref(), &overrides)
 }

@@ -408,6 +408,143 @@ pub fn analytic_grasps_detailed(
     Ok(out)
 }
 
+/// Turns of a proposal's axis tried when refining it ([`check_proposals`]), degrees; the
+/// unturned axis first.
+pub const REFINE_TURNS_DEG: [f32; 5] = [0.0, -10.0, 10.0, -20.0, 20.0];
+
+/// Shifts of a proposal's centre across its axis tried when refining it, metres; unshifted
+/// first.
+pub const REFINE_SHIFTS_M: [f32; 5] = [0.0, -0.003, 0.003, -0.006, 0.006];
+
+/// Another source's grasps (a network's proposals, in crop pixels) checked against the crop's
+/// depth with the analytic search's own test, each at its own centre and axis: the height map,
+/// table and object of [`analytic_grasps_detailed`], then, for a proposal, its centre (the
+/// median depth of the 5×5 pixels around it, on its ray, as [`super::decode::grasp_pose`]
+/// places it) and axis on the table, evaluated at the grasp heights below the top there
+/// (fingers closing from the full opening onto the outermost material, the friction cone at
+/// both contacts, both finger lanes clear, the jaw covered, the palm clear).
+///
+/// `refine = false` (*antipodal*): a proposal that passes is returned unchanged, one that
+/// fails is `None`. `refine = true`: the proposal's neighbourhood — its centre shifted up to
+/// 6 mm across its axis ([`REFINE_SHIFTS_M`]), its axis turned up to 20°
+/// ([`REFINE_TURNS_DEG`]) — is searched as the analytic source searches its grid: each
+/// (centre, axis) that passes is moved to the midpoint of its contacts with its axis square to
+/// the contact walls and must pass again there; the best of them by the analytic quality
+/// replaces the proposal, with its opening the contacts' distance plus both clearances and
+/// the proposal's quality (its rank). `None` when nothing in the neighbourhood passes. One
+/// entry per proposal, in order.
+pub fn check_proposals(
+    crop: &ObjectCrop,
+    intrinsics: &Intrinsics,
+    gripper: &GraspSpec,
+    params: &AnalyticParams,
+    proposals: &[DecodedGrasp],
+    refine: bool,
+) -> Result<Vec<Option<DecodedGrasp>>, AnalyticError> {
+    params.validate()?;
+    gripper.validate().map_err(AnalyticError::InvalidGripper)?;
+    let camera = CropCamera::new(crop, intrinsics)?;
+    let n = crop.size_px as usize;
+    let points = crop_points(crop, &camera, params);
+    if proposals.is_empty() || points.iter().filter(|p| p.is_some()).count() < 3 {
+        return Ok(vec![None; proposals.len()]);
+    }
+    let anchor = scale(camera.ray([(n as f32 - 1.0) / 2.0; 2]), crop.table_depth_m);
+    let table = fit_table(&points, n, anchor, params);
+    let map = HeightMap::build(&points, &table, crop, &camera, params);
+    let Some(object) = map.object_nearest_origin(params.min_height_m) else {
+        return Ok(vec![None; proposals.len()]);
+    };
+    let search = Search {
+        map: &map,
+        gripper,
+        params,
+        centroid: object.centroid,
+    };
+    let jaw_px = gripper.finger_width_m * intrinsics.fx
+        / (crop.window.image_px_per_map_px * crop.table_depth_m);
+    Ok(proposals
+        .iter()
+        .map(|g| {
+            let (c, angle) = on_table(g, crop, &camera, &table)?;
+            let top = map.top(c);
+            if !refine {
+                return search.evaluate(c, angle, top).map(|_| *g);
+            }
+            // The neighbourhood: shifted across the axis, turned about the centre; the best
+            // candidate that settles there.
+            let across = [-angle.sin(), angle.cos()];
+            let settled = REFINE_TURNS_DEG
+                .iter()
+                .flat_map(|turn| REFINE_SHIFTS_M.iter().map(move |shift| (turn, shift)))
+                .filter_map(|(turn, shift)| {
+                    let p = [c[0] + across[0] * shift, c[1] + across[1] * shift];
+                    let a = (angle + turn.to_radians()).rem_euclid(PI);
+                    let moved = search.moved(p, a, map.top(p))?;
+                    search.settle(&moved)
+                })
+                .fold(None::<Candidate>, |best, x| match best {
+                    Some(b) if b.quality >= x.quality => Some(b),
+                    _ => Some(x),
+                })?;
+            let out = to_crop(&settled, &table, &camera, gripper, jaw_px)?;
+            Some(DecodedGrasp {
+                quality: g.quality,
+                ..out.grasp
+            })
+        })
+        .collect())
+}
+
+/// A crop-pixel grasp's centre and axis angle (in [0, π)) on the table: the centre on its
+/// ray at the median depth of the 5×5 pixels around it; the axis through a second point 8 px
+/// along it, on that ray at the centre's height. `None` when no depth is near the centre or a
+/// value is not finite.
+fn on_table(
+    g: &DecodedGrasp,
+    crop: &ObjectCrop,
+    camera: &CropCamera,
+    table: &Table,
+) -> Option<([f32; 2], f32)> {
+    let n = crop.size_px as i64;
+    let [x, y] = g.center_px;
+    if !(x.is_finite() && y.is_finite() && g.angle.is_finite()) {
+        return None;
+    }
+    let (xr, yr) = (x.round() as i64, y.round() as i64);
+    let mut depths: Vec<f32> = (yr - 2..=yr + 2)
+        .flat_map(|yy| (xr - 2..=xr + 2).map(move |xx| (xx, yy)))
+        .filter(|&(xx, yy)| xx >= 0 && yy >= 0 && xx < n && yy < n)
+        .map(|(xx, yy)| crop.depth_m[(yy * n + xx) as usize])
+        .filter(|z| z.is_finite() && *z > 0.0)
+        .collect();
+    if depths.is_empty() {
+        return None;
+    }
+    depths.sort_unstable_by(f32::total_cmp);
+    let m = depths.len();
+    let z = if m % 2 == 1 {
+        depths[m / 2]
+    } else {
+        (depths[m / 2 - 1] + depths[m / 2]) / 2.0
+    };
+    let centre = table.table_point(scale(camera.ray([x, y]), z));
+    let step = 8.0;
+    let other = [x + step * g.angle.cos(), y - step * g.angle.sin()];
+    let ray = camera.ray(other);
+    let along = dot(table.up, ray);
+    if along.abs() < 1e-6 {
+        return None;
+    }
+    let t = (centre[2] - table.offset_m) / along;
+    let far = table.table_point(scale(ray, t));
+    let angle = (far[1] - centre[1])
+        .atan2(far[0] - centre[0])
+        .rem_euclid(PI);
+    (centre.iter().all(|v| v.is_finite()) && angle.is_finite())
+        .then_some(([centre[0], centre[1]], angle))
+}
+
 /// Pinhole rays of crop pixels: crop pixel → frame pixel (the window) → ray.
 struct CropCamera {
     k: Intrinsics,

@@ -106,6 +106,7 @@ def grasp(
     gripper: Literal["2f-140", "2f-85"] | None = None,
     draw: Literal["collider", "mesh"] | None = None,
     shapes: Literal["decomposition", "hull"] | None = None,
+    proposal_check: Literal["contacts", "antipodal", "refine", "refine-first"] | None = None,
     out: Path | None = None,
     force: bool = False,
     record: bool = False,
@@ -117,8 +118,8 @@ def grasp(
     The options are the command line's (``lgdm sim grasp --help``): ``instances`` procedural
     objects per category from ``seed``, or the meshes under ``meshes`` (with ``units``, e.g.
     ``"mm"`` or ``["m", "cat/file.stl=mm"]``); ``config`` a ``sim.toml`` (a run directory's
-    replays that run) with ``gripper``, ``draw`` and ``shapes`` on top. Returns the results as
-    ``results.json`` holds them; ``out`` also writes the run directory.
+    replays that run) with ``gripper``, ``draw``, ``shapes`` and ``proposal_check`` on top.
+    Returns the results as ``results.json`` holds them; ``out`` also writes the run directory.
     """
     text = _lgdm.sim_grasp(
         scenario_name=scenario,
@@ -132,6 +133,7 @@ def grasp(
         gripper=gripper,
         draw=draw,
         shapes=shapes,
+        proposal_check=proposal_check,
         out=_path(out),
         force=force,
         record_all=record,
@@ -162,6 +164,7 @@ def pick_place(
     gripper: Literal["2f-140", "2f-85"] | None = None,
     draw: Literal["collider", "mesh"] | None = None,
     shapes: Literal["decomposition", "hull"] | None = None,
+    proposal_check: Literal["contacts", "antipodal", "refine", "refine-first"] | None = None,
     out: Path | None = None,
     force: bool = False,
     record: bool = False,
@@ -199,6 +202,7 @@ def pick_place(
         gripper=gripper,
         draw=draw,
         shapes=shapes,
+        proposal_check=proposal_check,
         out=out,
         force=force,
         record=record,
@@ -229,6 +233,7 @@ def packing(
     gripper: Literal["2f-140", "2f-85"] | None = None,
     draw: Literal["collider", "mesh"] | None = None,
     shapes: Literal["decomposition", "hull"] | None = None,
+    proposal_check: Literal["contacts", "antipodal", "refine", "refine-first"] | None = None,
     out: Path | None = None,
     force: bool = False,
     record: bool = False,
@@ -262,6 +267,7 @@ def packing(
         gripper=gripper,
         draw=draw,
         shapes=shapes,
+        proposal_check=proposal_check,
         out=out,
         force=force,
         record=record,
@@ -340,6 +346,7 @@ def _recognition_run(
     gripper: str | None,
     draw: str | None,
     shapes: str | None,
+    proposal_check: str | None,
     out: Path | None,
     force: bool,
     record: bool,
@@ -367,6 +374,7 @@ def _recognition_run(
         gripper=gripper,
         draw=draw,
         shapes=shapes,
+        proposal_check=proposal_check,
         out=_path(out),
         force=force,
         record_all=record,

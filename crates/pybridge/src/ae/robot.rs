@@ -28,6 +28,7 @@ use super::{AeError, AutoEncoder, FEATURE_DIM, view_features};
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::render::{Camera, RgbdFrame};
+use lgdm_sim::attempt::ProposalCheck;
 use lgdm_sim::recognize::{EncoderError, ViewEncoder};
 use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
 
@@ -71,6 +72,13 @@ impl GraspSource for NetworkSource {
                     source: Box::new(other),
                 },
             })
+    }
+
+    /// `refine-first`: each proposal is checked against the close-up's depth and refined in its
+    /// neighbourhood; the refused ones follow, as proposed (`docs/DESIGN.md` §5; `--proposal-check
+    /// contacts` tries the network's grasps as they come).
+    fn proposal_check(&self) -> ProposalCheck {
+        ProposalCheck::RefineFirst
     }
 
     /// The checkpoint, the input side and the jaw (also printed when the run starts).

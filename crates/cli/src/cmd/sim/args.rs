@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
+use lgdm_sim::attempt::ProposalCheck;
 use lgdm_sim::camera::ObjectDrawing;
 use lgdm_sim::config::OptionValue;
 use lgdm_sim::gripper::GripperModel;
@@ -16,7 +17,7 @@ use crate::progress::ProgressMode;
 
 /// The options of every robot run that describe it: none of them may accompany `--resume`
 /// (the run's job.json holds them).
-const ROBOT_FLAGS: [&str; 12] = [
+const ROBOT_FLAGS: [&str; 13] = [
     "grasp",
     "config",
     "gripper",
@@ -26,6 +27,7 @@ const ROBOT_FLAGS: [&str; 12] = [
     "units",
     "draw",
     "shapes",
+    "proposal_check",
     "record",
     "record_rounds",
     "ae_checkpoint",
@@ -51,10 +53,10 @@ const fn concat<const A: usize, const B: usize, const N: usize>(
 }
 
 /// [`ROBOT_FLAGS`] and `sim grasp`'s own.
-const GRASP_FLAGS: [&str; 16] = concat(ROBOT_FLAGS, ["scenario", "rounds", "seed", "instances"]);
+const GRASP_FLAGS: [&str; 17] = concat(ROBOT_FLAGS, ["scenario", "rounds", "seed", "instances"]);
 
 /// [`ROBOT_FLAGS`] and `sim pick-place`'s own (packing's `--targets` conflicts on its own).
-const PICK_PLACE_FLAGS: [&str; 24] = concat(
+const PICK_PLACE_FLAGS: [&str; 25] = concat(
     ROBOT_FLAGS,
     [
         "scenario",
@@ -268,6 +270,11 @@ pub struct RobotArgs {
     /// The objects' collider shapes in the physics (default: the config's, else decomposition).
     #[arg(long, value_parser = option_value::<ObjectShape>())]
     pub shapes: Option<ObjectShape>,
+    /// How each grasp proposal is checked against the close-up's depth before it is planned
+    /// (default: the config's, else the source's: refine-first for the network, contacts for
+    /// analytic and random).
+    #[arg(long, value_parser = option_value::<ProposalCheck>())]
+    pub proposal_check: Option<ProposalCheck>,
     /// Record the rounds for Foxglove: rounds/round-NNNN.mcap and a storyboard
     /// rounds/round-NNNN.png per round.
     #[arg(long)]
