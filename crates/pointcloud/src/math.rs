@@ -62,6 +62,22 @@ pub fn normalize(a: [f32; 3]) -> [f32; 3] {
     if n > 0.0 { scale(a, 1.0 / n) } else { a }
 }
 
+/// The median of `values` (sorted in place by [`f32::total_cmp`]; the mean of the middle two
+/// when their count is even); `None` when there are none. The one median of depth windows and
+/// height maps (a grasp's centre depth, the top at a grasp centre).
+pub fn median(values: &mut [f32]) -> Option<f32> {
+    let n = values.len();
+    if n == 0 {
+        return None;
+    }
+    values.sort_unstable_by(f32::total_cmp);
+    Some(if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    })
+}
+
 /// A rigid transform `target_from_source`: `p_target = rotation · p_source + translation`,
 /// nalgebra's [`IsometryMatrix3`] (the rotation is a 3×3 matrix, not a quaternion, so that
 /// rotating a point rounds exactly as the row-by-row dot products the datasets were made with).

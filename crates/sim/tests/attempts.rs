@@ -9,13 +9,14 @@
 //! Run in release (`cargo test -p lgdm-sim --release --test attempts`): physics in a debug build
 //! is two orders of magnitude slower.
 
+use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
 use lgdm_sim::attempt::{
     AttemptConfig, Cell, FailureReason, GraspPlan, ProposalCheck, execute, park, plan_grasp,
 };
-use lgdm_sim::perception::{Perception, WorldGrasp};
+use lgdm_sim::perception::{ObjectView, Perception, WorldGrasp};
 use lgdm_sim::results::RunResults;
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::runner::{checked_grasps, run_trials};
@@ -89,16 +90,16 @@ fn analytic_grasps_simple_objects_and_beats_random() {
     }
 }
 
-/// A plan whose pads would close on air is refused before it is tried: the can's grasp reaches
-/// its contacts; the same grasp with the fingertips lifted over the can (a lane clearance as a
-/// tall neighbour would force) does not, nor does one on the bare table beside it.
-#[test]
-fn plans_that_close_on_air_are_refused() {
+/// `mesh` alone on the table in front of the arm, settled, looked at: the cell, the close-up of
+/// the object and the default gripper as grasp sources see it.
+fn alone_on_the_table(
+    name: &str,
+    mesh: &lgdm_pointcloud::mesh::Mesh,
+) -> (Cell, ObjectView, GraspSpec) {
     let mut world = World::new(WorldConfig::default()).unwrap();
     let top = world.config().table.top_z_m();
-    let can = procedural_object("can", 0, 2).unwrap();
     world
-        .spawn_object("can", &can, &translation([0.08, -0.55, top]))
+        .spawn_object(name, mesh, &translation([0.08, -0.55, top]))
         .unwrap();
     world.settle();
     let cell = Cell::new(world, RobotConfig::default()).unwrap();
@@ -106,6 +107,17 @@ fn plans_that_close_on_air_are_refused() {
     let scene = perception.look(&cell.world).unwrap();
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
     let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    (cell, view, gripper)
+}
+
+/// A plan whose pads would close on air is refused before it is tried: the can's grasp reaches
+/// its contacts; the same grasp with the fingertips lifted over the can (a lane clearance as a
+/// tall neighbour would force) does not, nor does one on the bare table beside it.
+#[test]
+fn plans_that_close_on_air_are_refused() {
+    let can = procedural_object("can", 0, 2).unwrap();
+    let (cell, view, gripper) = alone_on_the_table("can", &can);
+    let top = cell.world.config().table.top_z_m();
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
@@ -156,19 +168,9 @@ impl GraspSource for Fixed {
 /// refined one.
 #[test]
 fn proposals_are_checked_against_the_depth_before_planning() {
-    let mut world = World::new(WorldConfig::default()).unwrap();
-    let top = world.config().table.top_z_m();
     let book =
         lgdm_pointcloud::mesh::Mesh::cuboid([0.0, 0.0, 0.03], [0.16, 0.05, 0.06], [90, 90, 200]);
-    world
-        .spawn_object("box", &book, &translation([0.08, -0.55, top]))
-        .unwrap();
-    world.settle();
-    let cell = Cell::new(world, RobotConfig::default()).unwrap();
-    let perception = Perception::new(Default::default()).unwrap();
-    let scene = perception.look(&cell.world).unwrap();
-    let view = perception.close_up(&cell.world, &scene, 0).unwrap();
-    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    let (_, view, gripper) = alone_on_the_table("box", &book);
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,

@@ -87,7 +87,7 @@ use serde::{Deserialize, Serialize};
 use super::decode::{DecodedGrasp, wrap_angle};
 use super::label::GraspSpec;
 use crate::crop::ObjectCrop;
-use crate::math::{add, cross, dot, norm, normalize, scale, splitmix64, sub};
+use crate::math::{add, cross, dot, median, norm, normalize, scale, splitmix64, sub};
 use crate::render::Intrinsics;
 
 /// Grasp heights tried below the top at the grasp centre, as fractions of `finger_length_m`
@@ -518,16 +518,7 @@ fn on_table(
         .map(|(xx, yy)| crop.depth_m[(yy * n + xx) as usize])
         .filter(|z| z.is_finite() && *z > 0.0)
         .collect();
-    if depths.is_empty() {
-        return None;
-    }
-    depths.sort_unstable_by(f32::total_cmp);
-    let m = depths.len();
-    let z = if m % 2 == 1 {
-        depths[m / 2]
-    } else {
-        (depths[m / 2 - 1] + depths[m / 2]) / 2.0
-    };
+    let z = median(&mut depths)?;
     let centre = table.table_point(scale(camera.ray([x, y]), z));
     let step = 8.0;
     let other = [x + step * g.angle.cos(), y - step * g.angle.sin()];
@@ -1034,16 +1025,7 @@ impl HeightMap {
                 }
             }
         }
-        if m == 0 {
-            return 0.0;
-        }
-        let v = &mut v[..m];
-        v.sort_unstable_by(f32::total_cmp);
-        if m % 2 == 1 {
-            v[m / 2]
-        } else {
-            (v[m / 2 - 1] + v[m / 2]) / 2.0
-        }
+        median(&mut v[..m]).unwrap_or(0.0)
     }
 
     /// The 8-connected component of cells at least `min_height` tall (and at least

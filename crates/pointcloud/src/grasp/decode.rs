@@ -64,7 +64,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use serde::{Deserialize, Serialize};
 
 use super::label::GraspRectangle;
-use crate::math::{Pose, cross, dot, norm, normalize, pose_from_columns, scale, sub};
+use crate::math::{Pose, cross, dot, median, norm, normalize, pose_from_columns, scale, sub};
 use crate::render::Intrinsics;
 
 /// Opening width (pixels at the network input resolution) that maps to 1.0 in the width map
@@ -743,19 +743,12 @@ pub fn grasp_pose(
             }
         }
     }
-    if window.is_empty() {
+    let Some(z) = median(&mut window) else {
         return Err(GraspDecodeError::NoDepth {
             x_px: u,
             y_px: v,
             radius_px: rad,
         });
-    }
-    window.sort_by(f32::total_cmp);
-    let n = window.len();
-    let z = if n % 2 == 1 {
-        window[n / 2]
-    } else {
-        (window[n / 2 - 1] + window[n / 2]) / 2.0
     };
     let position_m = k.unproject(u, v, z);
     let approach = normalize(position_m);
