@@ -2,7 +2,8 @@
 //! (with the 2F-85), the arm at its ready pose; the attempt approaches, descends, closes, lifts, holds, carries
 //! to the basket, releases and parks (`execute` + `park`: physics, IK and trajectories).
 //! `perceive_and_plan` times what comes before: the overview frame, segmentation, the close-up
-//! frame and crop, the analytic source and the grasp plan.
+//! frame and crop, the analytic source and the grasp plan; `proposal_check_12` the depth check
+//! and refinement of 12 proposals (`--proposal-check refine-first`, the network's default).
 //!
 //! The scene is built fresh for every iteration outside the timing (`iter_batched`). The
 //! headless 750-attempt figure comes from `lgdm sim grasp` itself (its summary prints wall time
@@ -21,16 +22,18 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
-use lgdm_sim::attempt::{AttemptConfig, Cell, execute, park, plan_grasp};
+use lgdm_sim::attempt::{AttemptConfig, Cell, ProposalCheck, execute, park, plan_grasp};
 use lgdm_sim::config::SimConfig;
 use lgdm_sim::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::perception::{ObjectView, Perception};
 use lgdm_sim::robot::RobotConfig;
+use lgdm_sim::runner::checked_grasps;
 use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource};
+use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
 use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
 
@@ -94,6 +97,42 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
             BatchSize::PerIteration,
         );
     });
+    // The proposal check (`refine-first`, the network's default) on 12 proposals: the analytic
+    // source's best three, each also turned by 30°, 60° and 90° (what a network might propose).
+    let s = scene(&mut shapes, object, &perception, robot);
+    let query = GraspQuery {
+        crop: &s.view.crop,
+        intrinsics: &s.view.shot.camera.intrinsics,
+        gripper: &gripper,
+        decode: &attempt.decode,
+    };
+    let best = AnalyticSource::new().grasps(&query, 3).unwrap();
+    let proposals: Vec<DecodedGrasp> = best
+        .iter()
+        .flat_map(|g| {
+            [0f32, 30.0, 60.0, 90.0].map(|turn| DecodedGrasp {
+                angle: g.angle + turn.to_radians(),
+                ..*g
+            })
+        })
+        .collect();
+    group.bench_function(format!("{prefix}proposal_check_12"), |b| {
+        b.iter(|| {
+            let mut fixed = Fixed(proposals.clone());
+            black_box(
+                checked_grasps(
+                    &mut fixed,
+                    &s.view,
+                    &gripper,
+                    3,
+                    &[],
+                    &attempt.decode,
+                    ProposalCheck::RefineFirst,
+                )
+                .unwrap(),
+            )
+        });
+    });
     group.bench_function(format!("{prefix}full_attempt"), |b| {
         b.iter_batched(
             || {
@@ -120,6 +159,18 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
         );
     });
     group.finish();
+}
+
+/// Proposals given as they are, `CHECK_POOL × k` at most (what the check asks a source for).
+struct Fixed(Vec<DecodedGrasp>);
+
+impl GraspSource for Fixed {
+    fn name(&self) -> &str {
+        "fixed"
+    }
+    fn grasps(&mut self, _: &GraspQuery<'_>, k: usize) -> Result<Vec<DecodedGrasp>, SourceError> {
+        Ok(self.0.iter().copied().take(k).collect())
+    }
 }
 
 fn bench(c: &mut Criterion) {
