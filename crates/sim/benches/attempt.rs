@@ -33,7 +33,7 @@ use lgdm_sim::perception::{ObjectView, Perception};
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::runner::checked_grasps;
 use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
+use lgdm_sim::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
 use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
 
@@ -118,7 +118,7 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
         .collect();
     group.bench_function(format!("{prefix}proposal_check_12"), |b| {
         b.iter(|| {
-            let mut fixed = Fixed(proposals.clone());
+            let mut fixed = FixedSource(proposals.clone());
             black_box(
                 checked_grasps(
                     &mut fixed,
@@ -159,18 +159,6 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
         );
     });
     group.finish();
-}
-
-/// Proposals given as they are, `CHECK_POOL × k` at most (what the check asks a source for).
-struct Fixed(Vec<DecodedGrasp>);
-
-impl GraspSource for Fixed {
-    fn name(&self) -> &str {
-        "fixed"
-    }
-    fn grasps(&mut self, _: &GraspQuery<'_>, k: usize) -> Result<Vec<DecodedGrasp>, SourceError> {
-        Ok(self.0.iter().copied().take(k).collect())
-    }
 }
 
 fn bench(c: &mut Criterion) {

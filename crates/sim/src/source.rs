@@ -8,6 +8,7 @@
 //!   ([`lgdm_pointcloud::grasp::analytic`]).
 //! - [`RandomSource`] (`random`): a baseline — a random object pixel, a random angle and a random
 //!   opening within the stroke, seeded.
+//! - [`FixedSource`] (tests, benchmarks, replays): proposals given beforehand.
 //! - `network`: the grasp autoencoder implements this trait in the bridge, behind its `ae`
 //!   feature (`lgdm_pybridge::ae::robot::NetworkSource`, loaded once per run; the crop → maps →
 //!   decoded grasps in crop pixels is `lgdm_pybridge::ae::grasps`), so this crate never needs
@@ -237,6 +238,26 @@ impl GraspSource for AnalyticSource {
             grasps: grasps.clone(),
         });
         Ok(grasps)
+    }
+}
+
+/// Proposals given beforehand, the same for every crop: the first `k` of them, in order. A
+/// stand-in for a learnt source in tests and benchmarks (what the robot's checks do with a
+/// proposal), and a way to replay grasps recorded elsewhere.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FixedSource(pub Vec<DecodedGrasp>);
+
+impl GraspSource for FixedSource {
+    fn name(&self) -> &str {
+        "fixed"
+    }
+
+    fn grasps(
+        &mut self,
+        _query: &GraspQuery<'_>,
+        k: usize,
+    ) -> Result<Vec<DecodedGrasp>, SourceError> {
+        Ok(self.0.iter().copied().take(k).collect())
     }
 }
 

@@ -21,7 +21,7 @@ use lgdm_sim::results::RunResults;
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::runner::{checked_grasps, run_trials};
 use lgdm_sim::scenario::{Scenario, ScenarioConfig, on_table, set_table};
-use lgdm_sim::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
+use lgdm_sim::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
 use lgdm_sim::spec::{RunSpec, builtin_source};
 use lgdm_sim::timing::WallTimes;
 use lgdm_sim::world::{World, WorldConfig};
@@ -149,18 +149,6 @@ fn plans_that_close_on_air_are_refused() {
     assert!(!bare.reaches_contacts(&config), "{bare:?}");
 }
 
-/// Proposals given as they are (a stand-in for the network): the first `k` of `grasps`.
-struct Fixed(Vec<DecodedGrasp>);
-
-impl GraspSource for Fixed {
-    fn name(&self) -> &str {
-        "fixed"
-    }
-    fn grasps(&mut self, _: &GraspQuery<'_>, k: usize) -> Result<Vec<DecodedGrasp>, SourceError> {
-        Ok(self.0.iter().copied().take(k).collect())
-    }
-}
-
 /// `--proposal-check`: a proposal along a 16 cm box (no antipodal pair within the stroke) is
 /// refused by the depth check and the next one taken; `refine` moves an off-centre proposal
 /// across the box onto its middle line and opens it as the analytic source would; `contacts`
@@ -196,8 +184,8 @@ fn proposals_are_checked_against_the_depth_before_planning() {
         quality: 0.8,
         ..best
     };
-    let mut fixed = Fixed(vec![along, off]);
-    let ask = |fixed: &mut Fixed, check| {
+    let mut fixed = FixedSource(vec![along, off]);
+    let ask = |fixed: &mut FixedSource, check| {
         checked_grasps(fixed, &view, &gripper, 1, &[], &Default::default(), check).unwrap()
     };
     let plain = ask(&mut fixed, ProposalCheck::Contacts);
