@@ -1099,6 +1099,38 @@ pub(crate) fn play(
     })
 }
 
+/// The grippers a source is asked with, in turn, until it finds a grasp: the full stroke, then
+/// each narrower opening of `fallback_openings_m` (wider ones are skipped).
+fn stroke_then_fallbacks<'a>(
+    gripper: &'a GraspSpec,
+    fallback_openings_m: &'a [f32],
+) -> impl Iterator<Item = GraspSpec> + 'a {
+    let narrower = fallback_openings_m
+        .iter()
+        .copied()
+        .filter(|w| *w < gripper.max_opening_m);
+    std::iter::once(gripper.max_opening_m)
+        .chain(narrower)
+        .map(|max_opening_m| GraspSpec {
+            max_opening_m,
+            ..*gripper
+        })
+}
+
+/// The query of `view`'s close-up for `gripper`.
+fn query<'a>(
+    view: &'a ObjectView,
+    gripper: &'a GraspSpec,
+    decode: &'a GraspDecodeParams,
+) -> GraspQuery<'a> {
+    GraspQuery {
+        crop: &view.crop,
+        intrinsics: &view.shot.camera.intrinsics,
+        gripper,
+        decode,
+    }
+}
+
 /// `source`'s `k` best grasps on `view` for `gripper`, maps decoded with `decode` (the run's
 /// `[attempt.decode]`); when it finds none for the full stroke, it is asked again for each
 /// narrower opening of `fallback_openings_m` in turn (an attempt opens the fingers to the
@@ -1112,31 +1144,12 @@ pub fn ranked_grasps(
     fallback_openings_m: &[f32],
     decode: &GraspDecodeParams,
 ) -> Result<Vec<DecodedGrasp>, SourceError> {
-    let query = GraspQuery {
-        crop: &view.crop,
-        intrinsics: &view.shot.camera.intrinsics,
-        gripper,
-        decode,
-    };
-    let mut grasps = source.grasps(&query, k)?;
-    for &opening in fallback_openings_m {
+    let mut grasps = Vec::new();
+    for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
+        grasps = source.grasps(&query(view, &spec, decode), k)?;
         if !grasps.is_empty() {
             break;
         }
-        if opening >= gripper.max_opening_m {
-            continue;
-        }
-        let narrower = GraspSpec {
-            max_opening_m: opening,
-            ..*gripper
-        };
-        grasps = source.grasps(
-            &GraspQuery {
-                gripper: &narrower,
-                ..query
-            },
-            k,
-        )?;
     }
     Ok(grasps)
 }
@@ -1187,23 +1200,8 @@ pub fn checked_grasps(
     let keep_refused = check == ProposalCheck::RefineFirst;
     let params = AnalyticSource::new().params;
     let mut out = CheckedGrasps::default();
-    let full = std::iter::once(gripper.max_opening_m);
-    let narrower = fallback_openings_m
-        .iter()
-        .copied()
-        .filter(|w| *w < gripper.max_opening_m);
-    for opening in full.chain(narrower) {
-        let spec = GraspSpec {
-            max_opening_m: opening,
-            ..*gripper
-        };
-        let query = GraspQuery {
-            crop: &view.crop,
-            intrinsics: &view.shot.camera.intrinsics,
-            gripper: &spec,
-            decode,
-        };
-        let proposals = source.grasps(&query, k.saturating_mul(CHECK_POOL))?;
+    for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
+        let proposals = source.grasps(&query(view, &spec, decode), k.saturating_mul(CHECK_POOL))?;
         let passed = check_proposals(
             &view.crop,
             &view.shot.camera.intrinsics,
