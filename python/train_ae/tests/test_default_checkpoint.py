@@ -160,3 +160,13 @@ def test_make_default_adds_generator_seeds_and_repeats_the_robots_images(tmp_pat
         with pytest.raises(SystemExit) as e:
             make_default.main([*argv, *bad])
         assert e.value.code == 2
+    # Seeds S+5..S+7 are the validation and test families: never trained on.
+    with pytest.raises(SystemExit):
+        make_default.main([*argv, "--more-seeds", "5", "--out", str(tmp_path / "x.pt")])
+    assert "would train on generator seed(s) [8]" in capsys.readouterr().err
+    assert not (tmp_path / "x.pt").exists()
+    # --input-size reaches step 5.
+    assert make_default.main([*argv, "--skip-data", "--init", str(out), "--input-size", "224",
+                              "--out", str(tmp_path / "big.pt")]) == 0
+    assert "--input-size 224" in capsys.readouterr().err
+    assert load_checkpoint(tmp_path / "big.pt")[0].config.input_size == 224

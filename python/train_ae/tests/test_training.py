@@ -447,3 +447,31 @@ def test_init_starts_from_a_checkpoint(lgdm_dir, tmp_path, capsys):
     assert "is a 'tiny' network, not --config cpu" in capsys.readouterr().err
     assert train_cli.main([*base, "--out", str(tuned), "--init", str(tmp_path / "no.pt")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_input_size_fine_tunes_at_another_resolution(lgdm_dir, tmp_path, capsys):
+    start = tmp_path / "start.pt"
+    base = ["--data", str(lgdm_dir), "--config", "cpu", "--epochs", "1", "--batch-size", "4",
+            "--threads", "1", "--quiet"]
+    assert train_cli.main([*base, "--out", str(start)]) == 0
+    big = tmp_path / "big.pt"
+    assert train_cli.main([*base, "--out", str(big), "--init", str(start), "--input-size",
+                           "224", "--lr", "1e-12"]) == 0
+    assert "input 112 -> 224 px: width head scaled by 2" in capsys.readouterr().err
+    (a, _), (b, meta) = load_checkpoint(start), load_checkpoint(big)
+    assert (a.config.input_size, b.config.input_size) == (112, 224)
+    # Openings are pixels of the input: the width head doubles, the other three heads stay.
+    assert torch.allclose(b.heads.weight[3], 2 * a.heads.weight[3], atol=1e-6)
+    assert torch.allclose(b.heads.bias[3], 2 * a.heads.bias[3], atol=1e-6)
+    assert torch.allclose(b.heads.weight[:3], a.heads.weight[:3], atol=1e-6)
+    assert meta["metrics"]["heldout"]["n"] > 0
+    # A fine-tune of it keeps its size unless told otherwise.
+    again = tmp_path / "again.pt"
+    assert train_cli.main([*base, "--out", str(again), "--init", str(big), "--lr", "1e-12"]) == 0
+    assert load_checkpoint(again)[0].config.input_size == 224
+    assert "width head" not in capsys.readouterr().err
+    for bad in ("30", "8", "-4"):
+        with pytest.raises(SystemExit):
+            train_cli.main([*base, "--out", str(tmp_path / "x.pt"), "--input-size", bad])
+        assert "--input-size must be a multiple of 4" in capsys.readouterr().err
+    assert not (tmp_path / "x.pt").exists()

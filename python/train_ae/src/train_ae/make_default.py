@@ -3,7 +3,7 @@
     python -m train_ae.make_default --lgdm PATH/TO/lgdm --work DIR [--out CKPT]
         [--preset paper] [--images 2000] [--epochs 50] [--seed 0] [--threads 1]
         [--robot-scenes 1500] [--ycb-scenes 600] [--finetune-epochs 6] [--neg-weight 10]
-        [--more-seeds 0] [--more-images 1000] [--robot-repeat 1]
+        [--more-seeds 0] [--more-images 1000] [--robot-repeat 1] [--input-size PX]
         [--geometric-only] [--init CKPT] [--skip-data] [--quiet]
 
 Two stages, each step printed as the equivalent shell command before it runs. The first learns
@@ -27,7 +27,8 @@ labelled by whether a grasp held in the physics:
    the venv lgdm finds; ``--ycb-scenes 0`` leaves it out);
    ``--more-seeds K`` adds ``lgdm gen-dataset --preset P --frames 1 --grasp-images M --seed
    S+i --out DIR/data-seed<S+i> --progress none`` for i = 1..K (``--more-images M``):
-   geometric images of objects of other generator seeds;
+   geometric images of objects of other generator seeds (never S+5, S+6 or S+7: the README's
+   validation and test families, ``HELD_OUT_SEEDS``, so K is at most 4);
 5. ``python -m train_ae.train --data DIR/robot DIR/data/grasp DIR/robot-ycb --init
    DIR/geometric/cpu.pt --epochs F --neg-weight W --seed S --threads T --out CKPT``: a
    fine-tune on the three sets as one, holding out what step 2 held out (``--holdout init``),
@@ -35,6 +36,8 @@ labelled by whether a grasp held in the physics:
    grasps that failed (the negative rectangles) W times an untried pixel. With
    ``--more-seeds`` their images join the geometric set; ``--robot-repeat R`` shows the robot's
    images R times per epoch (``--repeat``), so they keep their share among more geometric ones.
+   ``--input-size PX`` fine-tunes at another input size (``train --input-size``; e.g. 224: the
+   same layers at twice the resolution, started from the 112-px weights).
 
 The defaults are the settings of the shipped checkpoint (see the package README for its
 figures). ``--init CKPT`` replaces steps 1–2 by a checkpoint they made (e.g. the old shipped
@@ -69,6 +72,10 @@ DEFAULTS = {
 }
 """Settings of the shipped checkpoint."""
 
+HELD_OUT_SEEDS = (5, 6, 7)
+"""Generator seeds, relative to ``--seed``, that no checkpoint may train on: the robot's
+validation objects (5), the unseen-family rectangle metric's validation (6) and test (7)."""
+
 ROBOT_INSTANCES = 10
 """Procedural instances per category in the robot's data (twice the paper preset's five: the
 first five are the geometric set's objects)."""
@@ -93,7 +100,8 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                    neg_weight: float = DEFAULTS["neg_weight"], preset: str = DEFAULTS["preset"],
                    more_seeds: int = DEFAULTS["more_seeds"],
                    more_images: int = DEFAULTS["more_images"],
-                   robot_repeat: int = DEFAULTS["robot_repeat"]
+                   robot_repeat: int = DEFAULTS["robot_repeat"],
+                   input_size: int | None = None
                    ) -> tuple[list[list[str]], list[str]]:
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
@@ -119,6 +127,8 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                   "--epochs", str(finetune_epochs), "--neg-weight", f"{neg_weight:g}",
                   "--seed", str(seed), "--threads",
                   str(threads), "--holdout", "init", "--out", str(out)]
+    if input_size is not None:
+        train_argv += ["--input-size", str(input_size)]
     return data, train_argv
 
 
@@ -163,6 +173,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="grasp images per extra seed")
     p.add_argument("--robot-repeat", type=int, default=DEFAULTS["robot_repeat"],
                    help="show the robot's images this many times per epoch in the fine-tune")
+    p.add_argument("--input-size", type=int, metavar="PX",
+                   help="fine-tune (step 5) at this input size (default: the start's)")
     p.add_argument("--geometric-only", action="store_true",
                    help="stop after step 2 and write its checkpoint to --out")
     p.add_argument("--init", type=Path, metavar="CKPT",
@@ -178,6 +190,12 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--more-seeds must be at least 0, --more-images and --robot-repeat at least 1")
     if not a.neg_weight > 0:
         p.error("--neg-weight must be positive")
+    reserved = sorted(set(range(a.seed + 1, a.seed + a.more_seeds + 1))
+                      & {a.seed + k for k in HELD_OUT_SEEDS})
+    if reserved:
+        p.error(f"--more-seeds {a.more_seeds} would train on generator seed(s) {reserved}, the "
+                f"validation and test families (seed + {', '.join(map(str, HELD_OUT_SEEDS))}); "
+                f"at most {min(HELD_OUT_SEEDS) - 1}")
     if a.init is not None and a.geometric_only:
         p.error("--init skips the geometric stage that --geometric-only asks for")
     if a.init is not None and not a.init.is_file():
@@ -201,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     data, tune_argv = robot_commands(a.lgdm, a.work, a.out, init, a.robot_scenes,
                                      a.ycb_scenes, a.finetune_epochs, a.seed, a.threads,
                                      a.neg_weight, a.preset, a.more_seeds, a.more_images,
-                                     a.robot_repeat)
+                                     a.robot_repeat, a.input_size)
     for i, argv in enumerate(data):
         out = Path(argv[argv.index("--out") + 1])
         what = ("step 3: grasps in the robot's world" if i == 0 else

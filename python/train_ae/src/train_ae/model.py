@@ -256,3 +256,14 @@ class GraspAutoencoder(nn.Module):
 def parameter_count(model: nn.Module) -> int:
     """Number of trainable parameters."""
     return sum(p.numel() for p in model.parameters() if p.requires_grad)
+
+
+def rescale_widths(model: GraspAutoencoder, factor: float) -> None:
+    """Scale the width head (a 1x1 convolution without activation) by ``factor``, in place.
+
+    The width map holds openings in pixels of the input (``grasp.WIDTH_SCALE_PX``), so weights
+    trained at one input size and used at ``factor`` times it (e.g. 112 -> 224: 2) start with
+    openings that still span the same part of the crop; the other three maps need no change."""
+    with torch.no_grad():
+        model.heads.weight[3].mul_(factor)
+        model.heads.bias[3].mul_(factor)

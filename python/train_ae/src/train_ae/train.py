@@ -1,7 +1,7 @@
 """Train the grasp autoencoder on a Cornell-layout directory and evaluate it on held-out objects.
 
     python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
-        [--init CKPT] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
+        [--init CKPT] [--input-size PX] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
         [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1] [--width-weight 1]
         [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
         [--repeat DIR=K ...]
@@ -25,6 +25,10 @@ instead of a seeded initialisation: a fine-tune; the checkpoint's file name and 
 recorded in the new one's metrics. A fine-tune holds out the objects its checkpoint held out
 (``--holdout init``, the default with ``--init``), so its held-out score is on objects neither
 stage trained on.
+
+``--input-size PX`` trains at another input size than ``--config``'s (with ``--init``: than the
+checkpoint's, whose weights all still fit — the feature is pooled adaptively — and whose width
+head is scaled by the ratio, widths being input pixels).
 
 ``--repeat DIR=K`` shows the training images of one ``--data`` directory K times per epoch
 (e.g. the robot's own views among many geometric images); held-out images are scored once.
@@ -53,7 +57,7 @@ from .data import (
     split_by_object,
     split_held_out_instances,
 )
-from .model import GraspAutoencoder, ModelConfig, parameter_count
+from .model import GraspAutoencoder, ModelConfig, parameter_count, rescale_widths
 from .progress import ProgressBar
 from .training import (
     DEFAULT_NEG_WEIGHT,
@@ -74,6 +78,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
                    help="Cornell-layout dataset directories (several train as one set)")
     p.add_argument("--config", choices=["cpu", "paper"], default="cpu")
     p.add_argument("--epochs", type=int, required=True)
+    p.add_argument("--input-size", type=int, default=None, metavar="PX",
+                   help="side of the network's input in pixels (default: --init's, else "
+                        "--config's: cpu 112, paper 224); a multiple of 4")
     p.add_argument("--out", required=True, type=Path, help="checkpoint file to write")
     p.add_argument("--init", type=Path, metavar="CKPT",
                    help="start from this checkpoint's weights (a fine-tune) instead of a "
@@ -119,6 +126,8 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
         p.error(str(e))
     if a.epochs < 1:
         p.error("--epochs must be at least 1")
+    if a.input_size is not None and (a.input_size < 16 or a.input_size % 4):
+        p.error(f"--input-size must be a multiple of 4 and at least 16, got {a.input_size}")
     if a.batch_size < 1:
         p.error("--batch-size must be at least 1")
     if not a.lr > 0:
@@ -218,17 +227,26 @@ def run(a: argparse.Namespace) -> dict:
     distinct = len(train_s)
     train_s = repeated(train_s, a.repeat)
     config = dataclasses.replace(ModelConfig.preset(a.config), jaw_side_fraction=jaw_fraction)
+    if start is not None:
+        config = dataclasses.replace(config, input_size=start[0].config.input_size)
+    if a.input_size is not None:
+        config = dataclasses.replace(config, input_size=a.input_size)
     model = GraspAutoencoder(config)
     init = None
     if start is not None:
         start, _ = start
-        if dataclasses.replace(start.config, jaw_side_fraction=None) != dataclasses.replace(
+        if dataclasses.replace(start.config, jaw_side_fraction=None,
+                               input_size=config.input_size) != dataclasses.replace(
                 config, jaw_side_fraction=None):
             raise DatasetError(f"--init {a.init} is a {start.config.name!r} network, not "
                                f"--config {a.config}")
         model.load_state_dict(start.state_dict())
         init = {"file": a.init.name, "sha256": hashlib.sha256(a.init.read_bytes()).hexdigest()}
         print(f"starting from {a.init} (sha256 {init['sha256'][:16]}…)", file=log)
+        if config.input_size != start.config.input_size:
+            rescale_widths(model, config.input_size / start.config.input_size)
+            print(f"input {start.config.input_size} -> {config.input_size} px: width head "
+                  f"scaled by {config.input_size / start.config.input_size:g}", file=log)
     train_objects = sorted({s.object_id for s in train_s})
     held_objects = sorted({s.object_id for s in held_s})
     jaw_txt = (f"decoded jaw = {jaw_fraction:.4f} x side "
