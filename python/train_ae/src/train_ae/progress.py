@@ -1,5 +1,5 @@
-"""A minimal progress bar on stderr (no dependency): redraws in place on a terminal, prints one
-line per finished bar otherwise (logs, CI)."""
+"""A minimal progress bar on stderr (no dependency): redraws in place on a terminal; otherwise
+(logs, CI) prints a line at each tenth of the way and one when the bar finishes."""
 
 from __future__ import annotations
 
@@ -40,8 +40,14 @@ class ProgressBar:
         self.done += n
         self.info = " ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                              for k, v in info.items())
-        if self.enabled and self.tty:
+        if not self.enabled:
+            return
+        if self.tty:
             self.stream.write("\r" + self._line())
+            self.stream.flush()
+        elif self.done < self.total and (self.done * 10 // self.total
+                                         > (self.done - n) * 10 // self.total):
+            self.stream.write(self._line() + "\n")
             self.stream.flush()
 
     def close(self) -> None:
