@@ -128,6 +128,7 @@ fn attempt_benches(c: &mut Criterion, prefix: &str, object: &ObjectModel, config
                     &[],
                     &attempt.decode,
                     ProposalCheck::RefineFirst,
+                    false,
                 )
                 .unwrap(),
             )

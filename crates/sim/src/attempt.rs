@@ -155,6 +155,13 @@ pub struct AttemptConfig {
     /// it used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub proposal_check: Option<ProposalCheck>,
+    /// When the check refuses every proposal for the full stroke, ask the source once more
+    /// for [`crate::runner::WIDEN_POOL`] times as many, decoded with half the quality
+    /// threshold and half the peak distance, before the refused ones are tried (`refine-first`
+    /// and `refine-ranked`) or a narrower opening is asked for (default: false; no effect
+    /// with `contacts`).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub widen_when_refused: bool,
 }
 
 /// How a grasp source's proposals are checked against the close-up's depth before they are
@@ -182,6 +189,12 @@ pub enum ProposalCheck {
     /// grasp either) the proposals are tried as they are.
     #[serde(rename = "refine-first")]
     RefineFirst,
+    /// As `refine-first`, but the proposals that pass are tried in the order of the analytic
+    /// source's quality where they settled (safe grasps first; its stability term prefers
+    /// centres near the object's centroid), the proposal's rank breaking ties: the network
+    /// chooses where to look, the depth which of those places first.
+    #[serde(rename = "refine-ranked")]
+    RefineRanked,
 }
 
 impl ProposalCheck {
@@ -192,6 +205,7 @@ impl ProposalCheck {
             ProposalCheck::Antipodal => "antipodal",
             ProposalCheck::Refine => "refine",
             ProposalCheck::RefineFirst => "refine-first",
+            ProposalCheck::RefineRanked => "refine-ranked",
         }
     }
 }
@@ -239,6 +253,7 @@ impl Default for AttemptConfig {
             release_settles: 3,
             decode: GraspDecodeParams::default(),
             proposal_check: None,
+            widen_when_refused: false,
         }
     }
 }

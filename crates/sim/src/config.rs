@@ -94,6 +94,7 @@ impl OptionValue for ProposalCheck {
         ProposalCheck::Antipodal,
         ProposalCheck::Refine,
         ProposalCheck::RefineFirst,
+        ProposalCheck::RefineRanked,
     ];
     fn word(self) -> &'static str {
         ProposalCheck::word(self)
@@ -114,6 +115,10 @@ impl OptionValue for ProposalCheck {
             ProposalCheck::RefineFirst => {
                 "As refine, but the refused proposals follow the refined ones as proposed \
                  instead of being dropped"
+            }
+            ProposalCheck::RefineRanked => {
+                "As refine-first, but the refined ones are tried in the analytic source's \
+                 order of quality where they settled (safe first), not the proposals' order"
             }
         }
     }

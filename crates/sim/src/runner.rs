@@ -39,7 +39,7 @@ use std::time::Instant;
 use lgdm_base::Progress;
 use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::grasp::GraspSpec;
-use lgdm_pointcloud::grasp::analytic::check_proposals;
+use lgdm_pointcloud::grasp::analytic::{CheckedProposal, check_proposals_scored};
 use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams};
 use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
@@ -378,8 +378,9 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let gripper = &self.gripper;
         let decode = &self.spec.config.attempt.decode;
         let check = self.spec.config.attempt.proposal_check.unwrap_or_default();
+        let widen = self.spec.config.attempt.widen_when_refused;
         let checked = clock.wall.time(Work::Source, || {
-            checked_grasps(source, view, gripper, k, fallbacks, decode, check)
+            checked_grasps(source, view, gripper, k, fallbacks, decode, check, widen)
         })?;
         clock.proposals.checked += checked.checked;
         clock.proposals.check_refused += checked.refused;
@@ -1169,11 +1170,20 @@ pub struct CheckedGrasps {
     pub refused: usize,
 }
 
+/// How many times [`CHECK_POOL`] proposals per grasp wanted the source is asked for when the
+/// check refused all of the first ones and [`crate::attempt::AttemptConfig::widen_when_refused`]
+/// is set.
+pub const WIDEN_POOL: usize = 4;
+
 /// [`ranked_grasps`] with each proposal checked against the close-up's depth as `check` says
 /// ([`ProposalCheck`]): the source is asked for `k ×` [`CHECK_POOL`] proposals, they are checked
-/// in rank order ([`check_proposals`] with the analytic source's parameters) and the first `k`
-/// that pass are kept, in their order (`refine-first`: followed by the refused ones as
-/// proposed). When none is kept for the full stroke, the source is asked again for each of
+/// in rank order ([`check_proposals_scored`] with the analytic source's parameters) and the
+/// first `k` that pass are kept, in their order (`refine-ranked`: in the order of their
+/// analytic quality) and, with `refine-first` and `refine-ranked`, followed by the refused ones
+/// as proposed. With `widen` (the run's `widen_when_refused`), when every proposal is refused
+/// the source is asked once more for [`WIDEN_POOL`] times as many, decoded with half the
+/// quality threshold and half the peak distance, and those are checked before the refused
+/// ones are kept. When none is kept for the full stroke, the source is asked again for each of
 /// `fallback_openings_m` as [`ranked_grasps`] does. `contacts` is [`ranked_grasps`] itself
 /// (nothing checked).
 #[allow(clippy::too_many_arguments)]
@@ -1185,6 +1195,7 @@ pub fn checked_grasps(
     fallback_openings_m: &[f32],
     decode: &GraspDecodeParams,
     check: ProposalCheck,
+    widen: bool,
 ) -> Result<CheckedGrasps, SourceError> {
     let refine = match check {
         ProposalCheck::Contacts => {
@@ -1195,14 +1206,23 @@ pub fn checked_grasps(
             });
         }
         ProposalCheck::Antipodal => false,
-        ProposalCheck::Refine | ProposalCheck::RefineFirst => true,
+        ProposalCheck::Refine | ProposalCheck::RefineFirst | ProposalCheck::RefineRanked => true,
     };
-    let keep_refused = check == ProposalCheck::RefineFirst;
+    let keep_refused = matches!(
+        check,
+        ProposalCheck::RefineFirst | ProposalCheck::RefineRanked
+    );
     let params = AnalyticSource::new().params;
+    let wide = GraspDecodeParams {
+        quality_threshold: decode.quality_threshold / 2.0,
+        min_distance_px: decode.min_distance_px / 2,
+        ..*decode
+    };
     let mut out = CheckedGrasps::default();
     for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
-        let proposals = source.grasps(&query(view, &spec, decode), k.saturating_mul(CHECK_POOL))?;
-        let passed = check_proposals(
+        let pool = k.saturating_mul(CHECK_POOL);
+        let proposals = source.grasps(&query(view, &spec, decode), pool)?;
+        let mut passed = check_proposals_scored(
             &view.crop,
             &view.shot.camera.intrinsics,
             &spec,
@@ -1212,15 +1232,42 @@ pub fn checked_grasps(
         )?;
         out.checked += passed.len();
         out.refused += passed.iter().filter(|g| g.is_none()).count();
+        if widen && !proposals.is_empty() && passed.iter().all(Option::is_none) {
+            let more =
+                source.grasps(&query(view, &spec, &wide), pool.saturating_mul(WIDEN_POOL))?;
+            let checked = check_proposals_scored(
+                &view.crop,
+                &view.shot.camera.intrinsics,
+                &spec,
+                &params,
+                &more,
+                refine,
+            )?;
+            out.checked += checked.len();
+            out.refused += checked.iter().filter(|g| g.is_none()).count();
+            passed = checked.into_iter().chain(passed).collect();
+        }
+        let mut kept: Vec<(usize, CheckedProposal)> = passed
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| c.map(|c| (i, c)))
+            .collect();
+        if check == ProposalCheck::RefineRanked {
+            // Best analytic quality first; the proposal's rank breaks ties.
+            kept.sort_by(|(i, a), (j, b)| {
+                b.analytic_quality
+                    .total_cmp(&a.analytic_quality)
+                    .then(i.cmp(j))
+            });
+        }
         let refused = proposals
             .iter()
-            .zip(&passed)
+            .zip(passed.iter().skip(passed.len() - proposals.len()))
             .filter(|(_, g)| keep_refused && g.is_none())
             .map(|(p, _)| *p);
-        out.grasps = passed
-            .iter()
-            .flatten()
-            .copied()
+        out.grasps = kept
+            .into_iter()
+            .map(|(_, c)| c.grasp)
             .chain(refused)
             .take(k)
             .collect();

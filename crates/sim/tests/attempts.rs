@@ -153,7 +153,8 @@ fn plans_that_close_on_air_are_refused() {
 /// refused by the depth check and the next one taken; `refine` moves an off-centre proposal
 /// across the box onto its middle line and opens it as the analytic source would; `contacts`
 /// passes every proposal through unchecked; `refine-first` tries the refused one after the
-/// refined one.
+/// refined one; `refine-ranked` orders the refined ones by the analytic quality; widening asks
+/// again for more when every proposal is refused.
 #[test]
 fn proposals_are_checked_against_the_depth_before_planning() {
     let book =
@@ -186,7 +187,17 @@ fn proposals_are_checked_against_the_depth_before_planning() {
     };
     let mut fixed = FixedSource(vec![along, off]);
     let ask = |fixed: &mut FixedSource, check| {
-        checked_grasps(fixed, &view, &gripper, 1, &[], &Default::default(), check).unwrap()
+        checked_grasps(
+            fixed,
+            &view,
+            &gripper,
+            1,
+            &[],
+            &Default::default(),
+            check,
+            false,
+        )
+        .unwrap()
     };
     let plain = ask(&mut fixed, ProposalCheck::Contacts);
     assert_eq!(plain.grasps, vec![along]);
@@ -218,10 +229,66 @@ fn proposals_are_checked_against_the_depth_before_planning() {
         &[],
         &Default::default(),
         ProposalCheck::RefineFirst,
+        false,
     )
     .unwrap();
     assert_eq!(first.grasps, vec![g, along]);
     assert_eq!((first.checked, first.refused), (2, 1));
+    // `refine-ranked`: of two proposals that pass, the one that settles where the analytic
+    // source scores higher (the box's centre, not 25 px along it) is tried first, whatever
+    // the proposals' order.
+    let centre = DecodedGrasp {
+        quality: 0.7,
+        ..best
+    };
+    let mut two = FixedSource(vec![off, centre]);
+    let ask2 = |two: &mut FixedSource, check| {
+        checked_grasps(
+            two,
+            &view,
+            &gripper,
+            2,
+            &[],
+            &Default::default(),
+            check,
+            false,
+        )
+        .unwrap()
+    };
+    let in_order = ask2(&mut two, ProposalCheck::RefineFirst);
+    let ranked = ask2(&mut two, ProposalCheck::RefineRanked);
+    assert_eq!(in_order.grasps.len(), 2);
+    assert_eq!(in_order.grasps[0].quality, 0.8);
+    assert_eq!(ranked.grasps, vec![in_order.grasps[1], in_order.grasps[0]]);
+    // `widen_when_refused`: four refused proposals fill the first pool (k = 1: 4 asked); the
+    // wider second ask (16) reaches the one that passes, which comes before the refused ones.
+    let mut crowd = FixedSource(vec![along, along, along, along, off]);
+    let narrow = checked_grasps(
+        &mut crowd,
+        &view,
+        &gripper,
+        1,
+        &[],
+        &Default::default(),
+        ProposalCheck::RefineFirst,
+        false,
+    )
+    .unwrap();
+    assert_eq!(narrow.grasps, vec![along]);
+    assert_eq!((narrow.checked, narrow.refused), (4, 4));
+    let wide = checked_grasps(
+        &mut crowd,
+        &view,
+        &gripper,
+        1,
+        &[],
+        &Default::default(),
+        ProposalCheck::RefineFirst,
+        true,
+    )
+    .unwrap();
+    assert_eq!(wide.grasps, vec![g]);
+    assert_eq!((wide.checked, wide.refused), (9, 8));
 }
 
 /// One attempt through the library's parts: a can on the table, seen, grasped analytically,

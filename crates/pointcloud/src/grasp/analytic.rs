@@ -441,6 +441,34 @@ pub fn check_proposals(
     proposals: &[DecodedGrasp],
     refine: bool,
 ) -> Result<Vec<Option<DecodedGrasp>>, AnalyticError> {
+    Ok(
+        check_proposals_scored(crop, intrinsics, gripper, params, proposals, refine)?
+            .into_iter()
+            .map(|o| o.map(|c| c.grasp))
+            .collect(),
+    )
+}
+
+/// A proposal that passed [`check_proposals_scored`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckedProposal {
+    /// The grasp as [`check_proposals`] returns it (the proposal's quality kept).
+    pub grasp: DecodedGrasp,
+    /// The analytic source's quality where it passed (the refined place, or the proposal's own
+    /// centre and axis without `refine`): safe grasps in [0.5, 1], the others below, as the
+    /// analytic source ranks its own.
+    pub analytic_quality: f32,
+}
+
+/// [`check_proposals`] with the analytic quality of each proposal that passed.
+pub fn check_proposals_scored(
+    crop: &ObjectCrop,
+    intrinsics: &Intrinsics,
+    gripper: &GraspSpec,
+    params: &AnalyticParams,
+    proposals: &[DecodedGrasp],
+    refine: bool,
+) -> Result<Vec<Option<CheckedProposal>>, AnalyticError> {
     params.validate()?;
     gripper.validate().map_err(AnalyticError::InvalidGripper)?;
     let camera = CropCamera::new(crop, intrinsics)?;
@@ -469,7 +497,13 @@ pub fn check_proposals(
             let (c, angle) = on_table(g, crop, &camera, &table)?;
             let top = map.top(c);
             if !refine {
-                return search.evaluate(c, angle, top).map(|_| *g);
+                return search.evaluate(c, angle, top).map(|eval| {
+                    let distance = (c[0] - object.centroid[0]).hypot(c[1] - object.centroid[1]);
+                    CheckedProposal {
+                        grasp: *g,
+                        analytic_quality: search.quality(&eval, distance),
+                    }
+                });
             }
             // The neighbourhood: shifted across the axis, turned about the centre; the best
             // candidate that settles there.
@@ -488,9 +522,12 @@ pub fn check_proposals(
                     _ => Some(x),
                 })?;
             let out = to_crop(&settled, &table, &camera, gripper, jaw_px)?;
-            Some(DecodedGrasp {
-                quality: g.quality,
-                ..out.grasp
+            Some(CheckedProposal {
+                grasp: DecodedGrasp {
+                    quality: g.quality,
+                    ..out.grasp
+                },
+                analytic_quality: settled.quality,
             })
         })
         .collect())
