@@ -17,7 +17,13 @@ from train_ae.checkpoint import FORMAT, load_checkpoint, save_checkpoint
 from train_ae.data import GraspDataset, find_samples, load_images, normalize_rgbd
 from train_ae.model import GraspAutoencoder, ModelConfig
 from train_ae.synthetic import write_synthetic_dataset
-from train_ae.training import evaluate_model, grasp_loss, train_model
+from train_ae.training import (
+    LABEL_COUNT_BINS,
+    evaluate_model,
+    format_result,
+    grasp_loss,
+    train_model,
+)
 
 
 def _model(seed=0):
@@ -338,6 +344,15 @@ def test_perfect_maps_on_lgdm_crops_score_everything_with_the_finger_jaw(lgdm_di
     cats = {s.category for s in ds.samples}
     assert set(result["per_category"]) == cats and len(cats) > 1
     assert sum(v["n"] for v in result["per_category"].values()) == result["n"]
+    bins = result["per_label_count"]
+    assert list(bins) == ["1-6", "7-15", "16+"]
+    # Each image is binned by its own number of positive rectangles.
+    counts = [len(ds.item(i)[2]) for i in range(len(ds))]
+    expected = {name: sum(1 for c in counts if c and c <= top and c > low)
+                for (name, top), low in zip(LABEL_COUNT_BINS, (0, 6, 15), strict=True)}
+    assert {k: v["n"] for k, v in bins.items()} == expected
+    assert sum(v["correct"] for v in bins.values()) == result["correct"]
+    assert "per labelled grasps in the image: " in format_result(result)
     assert sum(v["correct"] for v in result["per_object"].values()) == result["correct"]
     assert result["no_grasp"] == 0
 

@@ -156,6 +156,12 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
     return hist
 
 
+LABEL_COUNT_BINS = (("1-6", 6), ("7-15", 15), ("16+", float("inf")))
+"""Bins of an image's number of labelled (positive) rectangles in ``per_label_count``: an object
+the labeller accepts few grasps on (an apple wider than the stroke: a pinch or two) is scored
+against those few."""
+
+
 def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: int = 8,
                    progress: Callable[[int, int], None] | None = None,
                    jaw_side_fraction: float | None = None) -> dict:
@@ -172,6 +178,7 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
     n = correct = skipped = no_grasp = 0
     per_category: dict[str, list[int]] = {}
     per_object: dict[str, list[int]] = {}
+    per_labels: dict[str, list[int]] = {name: [0, 0] for name, _ in LABEL_COUNT_BINS}
     total = len(dataset)
     with torch.inference_mode():
         for start in range(0, total, batch_size):
@@ -190,8 +197,9 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
                 correct += ok
                 no_grasp += int(not pred)
                 sample = dataset.samples[idx[j]]
+                labels = next(name for name, top in LABEL_COUNT_BINS if len(gt) <= top)
                 for key, table in ((sample.category or "-", per_category),
-                                   (sample.object_id, per_object)):
+                                   (sample.object_id, per_object), (labels, per_labels)):
                     table.setdefault(key, [0, 0])
                     table[key][0] += ok
                     table[key][1] += 1
@@ -207,6 +215,7 @@ def evaluate_model(model: GraspAutoencoder, dataset: GraspDataset, batch_size: i
         "no_grasp": no_grasp,
         "per_category": {k: {"correct": v[0], "n": v[1]} for k, v in sorted(per_category.items())},
         "per_object": {k: {"correct": v[0], "n": v[1]} for k, v in sorted(per_object.items())},
+        "per_label_count": {k: {"correct": v[0], "n": v[1]} for k, v in per_labels.items()},
     }
 
 
@@ -223,4 +232,8 @@ def format_result(result: dict) -> str:
     if len(cats) > 1 or (cats and "-" not in cats):
         text += "\n  per category: " + ", ".join(
             f"{c} {v['correct']}/{v['n']}" for c, v in cats.items())
+    bins = result.get("per_label_count") or {}
+    if sum(v["n"] for v in bins.values()):
+        text += "\n  per labelled grasps in the image: " + ", ".join(
+            f"{c} {v['correct']}/{v['n']}" for c, v in bins.items() if v["n"])
     return text
