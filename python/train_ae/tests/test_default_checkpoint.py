@@ -170,3 +170,7 @@ def test_make_default_adds_generator_seeds_and_repeats_the_robots_images(tmp_pat
                               "--out", str(tmp_path / "big.pt")]) == 0
     assert "--input-size 224" in capsys.readouterr().err
     assert load_checkpoint(tmp_path / "big.pt")[0].config.input_size == 224
+    assert make_default.main([*argv, "--skip-data", "--init", str(out), "--balance-images",
+                              "--out", str(tmp_path / "bal.pt")]) == 0
+    assert "--balance-images" in capsys.readouterr().err
+    assert load_checkpoint(tmp_path / "bal.pt")[1]["metrics"]["training"]["balance_images"]

@@ -490,3 +490,28 @@ def test_input_size_fine_tunes_at_another_resolution(lgdm_dir, tmp_path, capsys)
             train_cli.main([*base, "--out", str(tmp_path / "x.pt"), "--input-size", bad])
         assert "--input-size must be a multiple of 4" in capsys.readouterr().err
     assert not (tmp_path / "x.pt").exists()
+
+
+def test_balance_images_weighs_each_images_positives_by_its_share():
+    torch.manual_seed(2)
+    targets = torch.zeros(3, 4, 12, 12)
+    targets[0, 0, 1:3, 1:3] = 1.0     # 4 positive pixels: a pinch or two
+    targets[1, 0, 2:8, 2:8] = 1.0     # 36: many grasps
+    # image 2 has no positive: its weight stays 1 everywhere
+    maps = tuple(torch.randn(3, 12, 12) for _ in range(4))
+    positive = (targets[:, 0] > 0).float()
+    # P̄ = (4 + 36) / 2 = 20: image 0 × 5, clamped to 4; image 1 × 20/36.
+    scale = torch.tensor([4.0, 20.0 / 36.0, 1.0])[:, None, None]
+    w = 1.0 + 9.0 * positive * scale
+    expect = sum(float((w * torch.nn.functional.smooth_l1_loss(m, targets[:, i],
+                                                                reduction="none")).sum()
+                       / w.sum()) for i, m in enumerate(maps))
+    assert float(grasp_loss(maps, targets, "weighted", 10.0, balance_images=True)) == \
+        pytest.approx(expect, rel=1e-6)
+    # Off (the default), the same batch is the plain weighted loss.
+    assert float(grasp_loss(maps, targets, "weighted", 10.0)) != pytest.approx(expect, rel=1e-3)
+    # A batch of equal images is unchanged by balancing.
+    same = targets[1:2].repeat(2, 1, 1, 1)
+    two = tuple(m[:2] for m in maps)
+    assert float(grasp_loss(two, same, balance_images=True)) == pytest.approx(
+        float(grasp_loss(two, same)), rel=1e-6)

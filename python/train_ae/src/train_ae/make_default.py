@@ -4,6 +4,7 @@
         [--preset paper] [--images 2000] [--epochs 50] [--seed 0] [--threads 1]
         [--robot-scenes 1500] [--ycb-scenes 600] [--finetune-epochs 6] [--neg-weight 10]
         [--more-seeds 0] [--more-images 1000] [--robot-repeat 1] [--input-size PX]
+        [--balance-images]
         [--geometric-only] [--init CKPT] [--skip-data] [--quiet]
 
 Two stages, each step printed as the equivalent shell command before it runs. The first learns
@@ -37,7 +38,9 @@ labelled by whether a grasp held in the physics:
    ``--more-seeds`` their images join the geometric set; ``--robot-repeat R`` shows the robot's
    images R times per epoch (``--repeat``), so they keep their share among more geometric ones.
    ``--input-size PX`` fine-tunes at another input size (``train --input-size``; e.g. 224: the
-   same layers at twice the resolution, started from the 112-px weights).
+   same layers at twice the resolution, started from the 112-px weights);
+   ``--balance-images`` passes ``train --balance-images`` (each image's positives weighed by the
+   batch's mean positive area over its own).
 
 The defaults are the settings of the shipped checkpoint (see the package README for its
 figures). ``--init CKPT`` replaces steps 1–2 by a checkpoint they made (e.g. the old shipped
@@ -101,7 +104,7 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                    more_seeds: int = DEFAULTS["more_seeds"],
                    more_images: int = DEFAULTS["more_images"],
                    robot_repeat: int = DEFAULTS["robot_repeat"],
-                   input_size: int | None = None
+                   input_size: int | None = None, balance_images: bool = False
                    ) -> tuple[list[list[str]], list[str]]:
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
@@ -129,6 +132,8 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
                   str(threads), "--holdout", "init", "--out", str(out)]
     if input_size is not None:
         train_argv += ["--input-size", str(input_size)]
+    if balance_images:
+        train_argv.append("--balance-images")
     return data, train_argv
 
 
@@ -175,6 +180,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="show the robot's images this many times per epoch in the fine-tune")
     p.add_argument("--input-size", type=int, metavar="PX",
                    help="fine-tune (step 5) at this input size (default: the start's)")
+    p.add_argument("--balance-images", action="store_true",
+                   help="fine-tune (step 5) with train --balance-images")
     p.add_argument("--geometric-only", action="store_true",
                    help="stop after step 2 and write its checkpoint to --out")
     p.add_argument("--init", type=Path, metavar="CKPT",
@@ -219,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     data, tune_argv = robot_commands(a.lgdm, a.work, a.out, init, a.robot_scenes,
                                      a.ycb_scenes, a.finetune_epochs, a.seed, a.threads,
                                      a.neg_weight, a.preset, a.more_seeds, a.more_images,
-                                     a.robot_repeat, a.input_size)
+                                     a.robot_repeat, a.input_size, a.balance_images)
     for i, argv in enumerate(data):
         out = Path(argv[argv.index("--out") + 1])
         what = ("step 3: grasps in the robot's world" if i == 0 else

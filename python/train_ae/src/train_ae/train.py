@@ -102,6 +102,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
                    help="weight of the quality term at labelled failures (the negative "
                         "rectangles) for --loss weighted, relative to unlabelled pixels "
                         f"(default {DEFAULT_NEG_WEIGHT:g}: no extra weight)")
+    p.add_argument("--balance-images", action="store_true",
+                   help="weighted loss: weigh each image's positives by the batch's mean "
+                        "positive area over its own (clamped to [1/4, 4])")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--holdout", choices=["per-category", "fraction", "init"], default=None,
                    help="held-out objects: init (the objects --init's checkpoint held out; "
@@ -262,7 +265,8 @@ def run(a: argparse.Namespace) -> dict:
     print(f"optimizer {a.optimizer} lr {a.lr:g}, loss {a.loss}"
           + (f" (positives x{a.pos_weight:g}"
              + (f", failures x{a.neg_weight:g}" if a.neg_weight != 1 else "")
-             + (f", width term x{a.width_weight:g}" if a.width_weight != 1 else "") + ")"
+             + (f", width term x{a.width_weight:g}" if a.width_weight != 1 else "")
+             + (", images balanced" if a.balance_images else "") + ")"
              if a.loss == "weighted" else "")
           + f", batch {a.batch_size}, augment {'off' if a.no_augment else 'on'}", file=log)
     train_ds = GraspDataset(train_s, config.input_size, augment=not a.no_augment, seed=a.seed)
@@ -281,7 +285,8 @@ def run(a: argparse.Namespace) -> dict:
 
     hist = train_model(model, train_ds, a.epochs, a.batch_size, a.lr, a.seed, progress,
                        loss=a.loss, pos_weight=a.pos_weight, optimizer=a.optimizer,
-                       neg_weight=a.neg_weight, width_weight=a.width_weight)
+                       neg_weight=a.neg_weight, width_weight=a.width_weight,
+                       balance_images=a.balance_images)
     s_per_img = hist.seconds / max(hist.images, 1)
     print(f"trained {a.epochs} epochs in {hist.seconds:.1f} s ({s_per_img:.3f} s per image, "
           f"{a.threads} threads); final epoch loss {hist.epoch_loss[-1]:.4f}", file=log)
@@ -309,6 +314,7 @@ def run(a: argparse.Namespace) -> dict:
             "pos_weight": a.pos_weight if a.loss == "weighted" else None,
             "neg_weight": a.neg_weight if a.loss == "weighted" else None,
             "width_weight": a.width_weight if a.loss == "weighted" else None,
+            "balance_images": a.balance_images if a.loss == "weighted" else None,
             "seed": a.seed,
             "holdout": holdout,
             "per_category": a.per_category if holdout == "per-category" else None,

@@ -45,9 +45,14 @@ DEFAULT_WIDTH_WEIGHT = 1.0
 """Factor on the width term of the weighted loss (1: the four terms count alike)."""
 
 
+BALANCE_LIMIT = 4.0
+"""``balance_images``: an image's positive weight is scaled by at most this factor either way."""
+
+
 def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
                pos_weight: float = DEFAULT_POS_WEIGHT, neg_weight: float = DEFAULT_NEG_WEIGHT,
-               width_weight: float = DEFAULT_WIDTH_WEIGHT) -> torch.Tensor:
+               width_weight: float = DEFAULT_WIDTH_WEIGHT,
+               balance_images: bool = False) -> torch.Tensor:
     """The grasp loss over the four maps; ``targets`` is (N, 4 or 5, H, W) = quality, cos 2θ,
     sin 2θ, width and optionally the negative mask (``GraspDataset`` gives all five).
 
@@ -60,6 +65,10 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
     (w_q = w + (neg_weight - 1)·negative): a grasp known to fail there, not an untried spot.
     The width term is multiplied by ``width_weight``: the opening is what decides whether a
     grasp on a lid or a rim holds, and its term is the smallest of the four.
+    ``balance_images``: the extra weight of an image's positive pixels is scaled by P̄ / P_i
+    (P_i its positive pixels, P̄ the mean over the batch's images that have any; clamped to
+    [1 / ``BALANCE_LIMIT``, ``BALANCE_LIMIT``]), so an object the labeller accepts two pinches
+    on weighs about as much as one with forty grasps.
     """
     if loss == "paper":
         return sum(F.smooth_l1_loss(m, targets[:, i]) for i, m in enumerate(maps))
@@ -71,7 +80,16 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
         raise ValueError(f"neg_weight must be positive, got {neg_weight}")
     if not width_weight > 0:
         raise ValueError(f"width_weight must be positive, got {width_weight}")
-    w = 1.0 + (pos_weight - 1.0) * (targets[:, 0] > 0).to(targets.dtype)
+    positive = (targets[:, 0] > 0).to(targets.dtype)
+    scale = torch.ones(len(targets), 1, 1, dtype=targets.dtype)
+    if balance_images:
+        count = positive.sum(dim=(1, 2))
+        has = count > 0
+        if has.any():
+            ratio = count[has].mean() / count.clamp(min=1.0)
+            scale = torch.where(has, ratio.clamp(1 / BALANCE_LIMIT, BALANCE_LIMIT),
+                                torch.ones_like(ratio))[:, None, None]
+    w = 1.0 + (pos_weight - 1.0) * positive * scale
     w_q = w
     if targets.shape[1] > 4 and neg_weight != 1.0:
         w_q = w + (neg_weight - 1.0) * targets[:, 4]
@@ -107,7 +125,8 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
                 start_epoch: int = 0, max_steps: int | None = None, loss: str = "weighted",
                 pos_weight: float = DEFAULT_POS_WEIGHT, optimizer: str = "adam",
                 neg_weight: float = DEFAULT_NEG_WEIGHT,
-                width_weight: float = DEFAULT_WIDTH_WEIGHT) -> TrainHistory:
+                width_weight: float = DEFAULT_WIDTH_WEIGHT,
+                balance_images: bool = False) -> TrainHistory:
     """``optimizer`` (Adam by default, RMSprop = the paper) on ``grasp_loss(loss,
     pos_weight, neg_weight, width_weight)``; batch order seeded by (seed, epoch).
 
@@ -137,7 +156,8 @@ def train_model(model: GraspAutoencoder, dataset: GraspDataset, epochs: int, bat
             idx = order[b * batch_size:(b + 1) * batch_size].tolist()
             x, y, _ = dataset.batch(idx, epoch)
             opt.zero_grad(set_to_none=True)
-            value = grasp_loss(model(x), y, loss, pos_weight, neg_weight, width_weight)
+            value = grasp_loss(model(x), y, loss, pos_weight, neg_weight, width_weight,
+                               balance_images)
             value.backward()
             opt.step()
             loss_value = value.item()
