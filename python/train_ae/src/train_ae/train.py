@@ -3,6 +3,7 @@
     python -m train_ae.train --data DIR [DIR ...] --config cpu --epochs N --out CKPT
         [--init CKPT] [--input-size PX] [--batch-size 8] [--lr 1e-3] [--optimizer adam|rmsprop]
         [--loss weighted|paper] [--pos-weight 10] [--neg-weight 1] [--width-weight 1]
+        [--balance-images]
         [--seed 0] [--holdout per-category|fraction|init] [--per-category 1]
         [--repeat DIR=K ...]
         [--val-fraction 0.1]
@@ -29,6 +30,10 @@ stage trained on.
 ``--input-size PX`` trains at another input size than ``--config``'s (with ``--init``: than the
 checkpoint's, whose weights all still fit — the feature is pooled adaptively — and whose width
 head is scaled by the ratio, widths being input pixels).
+
+``--balance-images`` (weighted loss) scales each image's extra positive weight by the batch's
+mean positive area over the image's own, clamped to [1/4, 4]: an image the labeller accepts one
+or two pinches on counts about as much as one with forty grasps.
 
 ``--repeat DIR=K`` shows the training images of one ``--data`` directory K times per epoch
 (e.g. the robot's own views among many geometric images); held-out images are scored once.
