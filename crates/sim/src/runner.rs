@@ -1221,31 +1221,26 @@ pub fn checked_grasps(
     let mut out = CheckedGrasps::default();
     for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
         let pool = k.saturating_mul(CHECK_POOL);
-        let proposals = source.grasps(&query(view, &spec, decode), pool)?;
-        let mut passed = check_proposals_scored(
-            &view.crop,
-            &view.shot.camera.intrinsics,
-            &spec,
-            &params,
-            &proposals,
-            refine,
-        )?;
-        out.checked += passed.len();
-        out.refused += passed.iter().filter(|g| g.is_none()).count();
-        if widen && !proposals.is_empty() && passed.iter().all(Option::is_none) {
-            let more =
-                source.grasps(&query(view, &spec, &wide), pool.saturating_mul(WIDEN_POOL))?;
-            let checked = check_proposals_scored(
+        // Checks `proposals`, counting what it looked at and refused.
+        let mut check_all = |proposals: &[DecodedGrasp]| {
+            let passed = check_proposals_scored(
                 &view.crop,
                 &view.shot.camera.intrinsics,
                 &spec,
                 &params,
-                &more,
+                proposals,
                 refine,
             )?;
-            out.checked += checked.len();
-            out.refused += checked.iter().filter(|g| g.is_none()).count();
-            passed = checked.into_iter().chain(passed).collect();
+            out.checked += passed.len();
+            out.refused += passed.iter().filter(|g| g.is_none()).count();
+            Ok::<_, SourceError>(passed)
+        };
+        let proposals = source.grasps(&query(view, &spec, decode), pool)?;
+        let mut passed = check_all(&proposals)?;
+        if widen && !proposals.is_empty() && passed.iter().all(Option::is_none) {
+            let more =
+                source.grasps(&query(view, &spec, &wide), pool.saturating_mul(WIDEN_POOL))?;
+            passed = check_all(&more)?.into_iter().chain(passed).collect();
         }
         let mut kept: Vec<(usize, CheckedProposal)> = passed
             .iter()

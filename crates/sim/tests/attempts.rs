@@ -263,30 +263,23 @@ fn proposals_are_checked_against_the_depth_before_planning() {
     // `widen_when_refused`: four refused proposals fill the first pool (k = 1: 4 asked); the
     // wider second ask (16) reaches the one that passes, which comes before the refused ones.
     let mut crowd = FixedSource(vec![along, along, along, along, off]);
-    let narrow = checked_grasps(
-        &mut crowd,
-        &view,
-        &gripper,
-        1,
-        &[],
-        &Default::default(),
-        ProposalCheck::RefineFirst,
-        false,
-    )
-    .unwrap();
+    let mut ask_crowd = |widen| {
+        checked_grasps(
+            &mut crowd,
+            &view,
+            &gripper,
+            1,
+            &[],
+            &Default::default(),
+            ProposalCheck::RefineFirst,
+            widen,
+        )
+        .unwrap()
+    };
+    let narrow = ask_crowd(false);
     assert_eq!(narrow.grasps, vec![along]);
     assert_eq!((narrow.checked, narrow.refused), (4, 4));
-    let wide = checked_grasps(
-        &mut crowd,
-        &view,
-        &gripper,
-        1,
-        &[],
-        &Default::default(),
-        ProposalCheck::RefineFirst,
-        true,
-    )
-    .unwrap();
+    let wide = ask_crowd(true);
     assert_eq!(wide.grasps, vec![g]);
     assert_eq!((wide.checked, wide.refused), (9, 8));
 }
