@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# The project's one test command (README, .ci/run): sets up everything it needs from scratch
+# The project's one test command (README.md, .ci/run): sets up everything it needs from scratch
 # (Rust build, Python venv, maturin build of the `lgdm` module) and runs every test.
 #
 # Order: lint; the venv with the Python test tools (numpy, maturin, pytest, ruff) before the Rust
 # tests, which use its numpy (crates/pointcloud/tests/features_npz.rs loads a written .npz; it
-# fails without numpy, it never skips); the Rust tests; the `lgdm` module and its pytest; torch
-# and train_ae (~3 GB on first use) last, then the Rust ↔ torch bridge tests and the network as
-# a Python grasp callable against the `ae` binary (examples/python).
+# fails without numpy, it never skips); the Rust tests; the `lgdm` module and its pytest (with
+# crates/pybridge/tests/test_docs.py: the docs' examples); torch and train_ae (the venv grows to
+# ~5.8 GB on first use, CUDA wheels included) last, then the Rust ↔ torch bridge tests and the
+# network as a Python grasp callable against the `ae` binary (examples/python).
 #
 # Environment:
 #   LGDM_VENV      the Python venv to create or reuse (default: ~/.cache/lgdm/venv, outside the clone);
@@ -50,7 +51,7 @@ step "python: lint, tests"
 # -rs: say why a test was skipped (test_cli.py needs the release `lgdm` binary built above).
 "$venv/bin/python" -m pytest -q -rs crates/pybridge/tests
 
-step "python: the grasp autoencoder (python/train_ae; pulls torch, ~3 GB, into the venv on first use)"
+step "python: the grasp autoencoder (python/train_ae; pulls torch into the venv on first use: ~5.8 GB with its CUDA wheels)"
 "$venv/bin/python" -m pip install -q -e python/train_ae
 "$venv/bin/ruff" check python/train_ae
 # test_ceiling.py generates grasp images with the release binary built above (-rs: say why a
