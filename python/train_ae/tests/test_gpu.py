@@ -170,3 +170,20 @@ def test_gpu_trainer_refuses_a_budget_too_small(packed, tmp_path, capsys):
             str(tmp_path / "r"), "--device", "cpu", "--workers", "1"]
     assert gpu_cli.main(argv) == 2
     assert "leaves" in capsys.readouterr().err
+
+
+def test_gpu_trainer_keeps_its_checkpoints_when_evaluation_fails(packed, tmp_path,
+                                                                 monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("decoder exploded")
+
+    monkeypatch.setattr(gpu_cli, "evaluate_model", broken)
+    out = tmp_path / "run"
+    argv = ["--pack", str(packed), "--config", "cpu", "--minutes", "1", "--out", str(out),
+            "--distill", "cpu", "--batch-size", "4", "--distill-batch-size", "4",
+            "--max-steps", "1", "--device", "cpu", "--workers", "1"]
+    assert gpu_cli.main(argv) == 0
+    record = json.loads((out / "record.json").read_text())
+    assert set(record["outputs"]) == {"cpu.pt", "cpu-distilled.pt"}
+    assert "decoder exploded" in record["phases"]["cpu"]["heldout"]["error"]
+    assert bridge.input_size(bridge.load(str(out / "cpu-distilled.pt"))) == 112
