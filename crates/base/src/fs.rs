@@ -210,6 +210,24 @@ impl std::fmt::Debug for Ownership<'_> {
     }
 }
 
+/// The file a temporary file of [`AtomicFile`] is being written for: `Some("results.json")`
+/// for `.results.json.a1B2c3.tmp`, `None` for any other name. Ownership policies count a
+/// temporary file as theirs only when its target is one of their own files, so that a user's
+/// `.notes.tmp` is never taken for a run's.
+///
+/// ```
+/// use lgdm_base::fs::temporary_target;
+/// assert_eq!(temporary_target(".results.json.a1B2c3.tmp"), Some("results.json"));
+/// assert_eq!(temporary_target(".notes.tmp"), None);
+/// assert_eq!(temporary_target("results.json"), None);
+/// ```
+pub fn temporary_target(name: &str) -> Option<&str> {
+    let inner = name.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (target, random) = inner.rsplit_once('.')?;
+    let random_ok = !random.is_empty() && random.bytes().all(|b| b.is_ascii_alphanumeric());
+    (random_ok && !target.is_empty()).then_some(target)
+}
+
 /// Why a directory cannot be claimed.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {reason}", path.display())]

@@ -706,17 +706,31 @@ fn write_preview(path: &Path, tiles: &[RgbImage]) -> Result<(), SimError> {
     sheet.write_png(path).map_err(|e| io_error(path, e))
 }
 
-/// What a grasp-data set holds (what `force` may remove).
+/// What a grasp-data set holds (what `force` may remove): its files by their exact names,
+/// the numbered folders of images `NN/pcdNNNN{r.png,d.tiff,cpos.txt,cneg.txt}`, and the
+/// temporary files of those being written.
 fn classify(name: &str, is_dir: bool) -> Entry {
-    let temporary = |n: &str| n.starts_with('.') && n.ends_with(".tmp");
+    use lgdm_base::fs::temporary_target;
     let folder = |n: &str| n.len() == 2 && n.bytes().all(|b| b.is_ascii_digit());
-    if let Some((outer, inner)) = name.split_once('/') {
-        let image = inner.starts_with("pcd")
-            && ["r.png", "d.tiff", "cpos.txt", "cneg.txt"]
-                .iter()
-                .any(|s| inner.ends_with(s));
-        return if folder(outer) && !is_dir && (image || temporary(inner)) {
+    let image = |n: &str| {
+        let Some(rest) = n.strip_prefix("pcd") else {
+            return false;
+        };
+        ["r.png", "d.tiff", "cpos.txt", "cneg.txt"].iter().any(|s| {
+            rest.strip_suffix(s)
+                .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+        })
+    };
+    let own = |n: &str, ours: &dyn Fn(&str) -> bool| {
+        if !is_dir && (ours(n) || temporary_target(n).is_some_and(ours)) {
             Entry::Ours
+        } else {
+            Entry::Foreign
+        }
+    };
+    if let Some((outer, inner)) = name.split_once('/') {
+        return if folder(outer) {
+            own(inner, &image)
         } else {
             Entry::Foreign
         };
@@ -728,13 +742,9 @@ fn classify(name: &str, is_dir: bool) -> Entry {
             Entry::Foreign
         };
     }
-    if !is_dir
-        && (name == INDEX_FILE || name == SETUP_FILE || name == GRASP_PREVIEW || temporary(name))
-    {
-        Entry::Ours
-    } else {
-        Entry::Foreign
-    }
+    own(name, &|n| {
+        n == INDEX_FILE || n == SETUP_FILE || n == GRASP_PREVIEW
+    })
 }
 
 fn claim(out: &Path, force: bool) -> Result<DirLock, SimError> {
@@ -747,4 +757,32 @@ fn claim(out: &Path, force: bool) -> Result<DirLock, SimError> {
         path: e.path,
         reason: e.reason,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_policy_knows_a_set_by_its_file_names() {
+        for (name, is_dir, want) in [
+            ("index.json", false, Entry::Ours),
+            ("grasp-data.json", false, Entry::Ours),
+            (GRASP_PREVIEW, false, Entry::Ours),
+            (".index.json.a1B2c3.tmp", false, Entry::Ours),
+            ("00", true, Entry::Folder),
+            ("00/pcd0001r.png", false, Entry::Ours),
+            ("00/pcd0001d.tiff", false, Entry::Ours),
+            ("00/pcd0001cneg.txt", false, Entry::Ours),
+            ("00/.pcd0001cpos.txt.a1B2c3.tmp", false, Entry::Ours),
+            ("holiday.png", false, Entry::Foreign),
+            (".holiday.png.a1B2c3.tmp", false, Entry::Foreign),
+            ("00/pcdholidayr.png", false, Entry::Foreign),
+            ("00/holiday.png", false, Entry::Foreign),
+            ("photos/pcd0001r.png", false, Entry::Foreign),
+            ("00", false, Entry::Foreign),
+        ] {
+            assert_eq!(classify(name, is_dir), want, "{name} (dir: {is_dir})");
+        }
+    }
 }

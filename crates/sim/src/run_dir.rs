@@ -63,56 +63,76 @@ pub struct Checkpoint {
     pub model: Option<String>,
 }
 
-/// What a sim run directory holds (what `force` may remove).
+/// The files a sim run writes at the top of its directory, by their exact names: what `force`
+/// may remove there (a user's own files, pictures included, never count).
+fn is_run_file(name: &str) -> bool {
+    use crate::plots::{ARRIVAL_PLOT, GRASP_PLOTS, PACKING_PLOT, RECOGNITION_PLOTS};
+    [
+        RESULTS_FILE,
+        SUMMARY_FILE,
+        MODEL_FILE,
+        MODEL_LABELS_FILE,
+        JOB_FILE,
+        CONFIG_FILE,
+        PROGRESS_FILE,
+        PACKING_PLOT,
+        ARRIVAL_PLOT,
+    ]
+    .iter()
+    .chain(GRASP_PLOTS.iter())
+    .chain(RECOGNITION_PLOTS.iter())
+    .any(|f| *f == name)
+}
+
+/// `round-NNNN.mcap` or `round-NNNN.png` (digits only between), as [`RoundSink`] names them.
+fn is_round_file(name: &str) -> bool {
+    let Some(rest) = name.strip_prefix("round-") else {
+        return false;
+    };
+    let Some(number) = rest
+        .strip_suffix(".mcap")
+        .or_else(|| rest.strip_suffix(".png"))
+    else {
+        return false;
+    };
+    !number.is_empty() && number.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// `model-NNNN.lgdm` (digits only between), as [`Checkpointer::save`] names them.
+fn is_progress_model(name: &str) -> bool {
+    name.strip_prefix("model-")
+        .and_then(|n| n.strip_suffix(".lgdm"))
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// What a sim run directory holds (what `force` may remove): the files a run writes, by
+/// their exact names, and its folders holding only such files (with the temporary files of
+/// those being written).
 fn classify(name: &str, is_dir: bool) -> Entry {
-    let temporary = |n: &str| n.starts_with('.') && n.ends_with(".tmp");
-    if let Some(inner) = name.strip_prefix("progress/") {
-        let model = inner.starts_with("model-") && inner.ends_with(".lgdm");
-        return if !is_dir && (model || temporary(inner)) {
+    use lgdm_base::fs::temporary_target;
+    let own = |inner: &str, ours: &dyn Fn(&str) -> bool| {
+        if !is_dir && (ours(inner) || temporary_target(inner).is_some_and(ours)) {
             Entry::Ours
         } else {
             Entry::Foreign
-        };
-    }
-    if name == PROGRESS_DIR {
-        return if is_dir {
+        }
+    };
+    let folder = || {
+        if is_dir {
             Entry::Folder
         } else {
             Entry::Foreign
-        };
+        }
+    };
+    if let Some(inner) = name.strip_prefix("progress/") {
+        return own(inner, &is_progress_model);
     }
     if let Some(inner) = name.strip_prefix("rounds/") {
-        // Recorded rounds: only round files may be in there.
-        let round =
-            inner.starts_with("round-") && (inner.ends_with(".mcap") || inner.ends_with(".png"));
-        return if !is_dir && (round || temporary(inner)) {
-            Entry::Ours
-        } else {
-            Entry::Foreign
-        };
+        return own(inner, &is_round_file);
     }
-    if name == ROUNDS_DIR {
-        return if is_dir {
-            Entry::Folder
-        } else {
-            Entry::Foreign
-        };
-    }
-    let ours = matches!(
-        name,
-        RESULTS_FILE
-            | SUMMARY_FILE
-            | MODEL_FILE
-            | MODEL_LABELS_FILE
-            | JOB_FILE
-            | CONFIG_FILE
-            | PROGRESS_FILE
-    ) || name.ends_with(".png")
-        || temporary(name);
-    if ours && !is_dir {
-        Entry::Ours
-    } else {
-        Entry::Foreign
+    match name {
+        PROGRESS_DIR | ROUNDS_DIR => folder(),
+        _ => own(name, &is_run_file),
     }
 }
 
@@ -304,7 +324,7 @@ impl Checkpointer {
         if let (Some(keep), Ok(entries)) = (&model, std::fs::read_dir(&folder)) {
             for entry in entries.flatten() {
                 let name = entry.file_name().to_string_lossy().into_owned();
-                if name.starts_with("model-") && &name != keep {
+                if is_progress_model(&name) && &name != keep {
                     let _ = std::fs::remove_file(entry.path());
                 }
             }
@@ -345,6 +365,14 @@ mod tests {
             ("model.lgdm", false, Entry::Ours),
             ("learning_curve.png", false, Entry::Ours),
             (".results.json.x1y2.tmp", false, Entry::Ours),
+            (".holiday.png.x1y2.tmp", false, Entry::Foreign),
+            (".notes.tmp", false, Entry::Foreign),
+            ("holiday.png", false, Entry::Foreign),
+            ("success_by_category.png", false, Entry::Ours),
+            ("packing_by_category.png", false, Entry::Ours),
+            ("rounds/round-0003-holiday.png", false, Entry::Foreign),
+            ("rounds/round-.png", false, Entry::Foreign),
+            ("progress/model-notes.lgdm", false, Entry::Foreign),
             ("rounds", true, Entry::Folder),
             ("rounds/round-0003.mcap", false, Entry::Ours),
             ("rounds/round-0003.png", false, Entry::Ours),

@@ -254,13 +254,15 @@ pub const EVAL_DIR: &str = "eval";
 /// The files `lgdm eval` writes into its output directory.
 pub const EVAL_FILES: [&str; 3] = ["confusion.csv", "confusion.png", "eval.json"];
 
-fn is_temporary(name: &str) -> bool {
-    name.starts_with('.') && name.ends_with(".tmp")
+/// A temporary file of an atomic write whose target `ours` accepts.
+fn is_temporary_of(name: &str, ours: impl Fn(&str) -> bool) -> bool {
+    lgdm_base::fs::temporary_target(name).is_some_and(ours)
 }
 
 /// What an evaluation directory holds: [`EVAL_FILES`] and nothing else.
-fn classify_eval(name: &str, _is_dir: bool) -> lgdm_base::fs::Entry {
-    if EVAL_FILES.contains(&name) || is_temporary(name) || name == LOCK_FILE {
+fn classify_eval(name: &str, is_dir: bool) -> lgdm_base::fs::Entry {
+    let ours = |n: &str| EVAL_FILES.contains(&n);
+    if !is_dir && (ours(name) || is_temporary_of(name, ours) || name == LOCK_FILE) {
         lgdm_base::fs::Entry::Ours
     } else {
         lgdm_base::fs::Entry::Foreign
@@ -281,6 +283,13 @@ pub fn claim_eval_dir(dir: &Path) -> Result<lgdm_base::fs::DirLock, ExperimentEr
     lgdm_base::fs::claim(dir, true, &EVAL_OWNERSHIP).map_err(|e| run_dir_error(&e.path, e.reason))
 }
 
+/// `<prefix><digits><suffix>`, the way a run names its numbered files.
+fn numbered(name: &str, prefix: &str, suffix: &str) -> bool {
+    name.strip_prefix(prefix)
+        .and_then(|n| n.strip_suffix(suffix))
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
 /// What a training run directory holds (what `--force` may remove): its own files, and an
 /// [`EVAL_DIR`] holding only an evaluation's files (anything else in it is not removed).
 fn classify(name: &str, is_dir: bool) -> lgdm_base::fs::Entry {
@@ -290,11 +299,27 @@ fn classify(name: &str, is_dir: bool) -> lgdm_base::fs::Entry {
     if let Some(inner) = name.strip_prefix("eval/") {
         return classify_eval(inner, is_dir);
     }
-    let ours = matches!(name, CONFIG_FILE | METRICS_FILE | TRIALS_DIR | SUMMARY_FILE)
-        || name.ends_with(".png")
-        || (name.starts_with("model-trial") && name.ends_with(".lgdm"))
-        || is_temporary(name);
-    if ours {
+    if name == TRIALS_DIR {
+        return if is_dir {
+            lgdm_base::fs::Entry::Folder
+        } else {
+            lgdm_base::fs::Entry::Foreign
+        };
+    }
+    if let Some(inner) = name.strip_prefix("trials/") {
+        let record = |n: &str| numbered(n, "trial-", ".json");
+        return if !is_dir && (record(inner) || is_temporary_of(inner, record)) {
+            lgdm_base::fs::Entry::Ours
+        } else {
+            lgdm_base::fs::Entry::Foreign
+        };
+    }
+    let ours = |n: &str| {
+        matches!(n, CONFIG_FILE | METRICS_FILE | SUMMARY_FILE)
+            || super::plots::RUN_PLOTS.contains(&n)
+            || numbered(n, "model-trial", ".lgdm")
+    };
+    if !is_dir && (ours(name) || is_temporary_of(name, ours)) {
         lgdm_base::fs::Entry::Ours
     } else {
         lgdm_base::fs::Entry::Foreign
@@ -634,6 +659,33 @@ pub fn merge(runs: &[Run]) -> Result<Merged, ExperimentError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_policies_know_their_files_by_name_and_nothing_else() {
+        use lgdm_base::fs::Entry;
+        for (name, is_dir, want) in [
+            ("config.toml", false, Entry::Ours),
+            ("metrics.json", false, Entry::Ours),
+            ("accuracy.png", false, Entry::Ours),
+            ("model-trial3.lgdm", false, Entry::Ours),
+            (".metrics.json.a1B2c3.tmp", false, Entry::Ours),
+            ("trials", true, Entry::Folder),
+            ("trials/trial-0.json", false, Entry::Ours),
+            ("trials/.trial-0.json.a1B2c3.tmp", false, Entry::Ours),
+            ("eval", true, Entry::Folder),
+            ("eval/confusion.png", false, Entry::Ours),
+            ("holiday.png", false, Entry::Foreign),
+            (".holiday.png.a1B2c3.tmp", false, Entry::Foreign),
+            (".notes.tmp", false, Entry::Foreign),
+            ("model-trial-notes.lgdm", false, Entry::Foreign),
+            ("trials/holiday.png", false, Entry::Foreign),
+            ("trials", false, Entry::Foreign),
+            ("eval/holiday.png", false, Entry::Foreign),
+            ("metrics.json", true, Entry::Foreign),
+        ] {
+            assert_eq!(classify(name, is_dir), want, "{name} (dir: {is_dir})");
+        }
+    }
     use crate::experiment::Figures;
 
     fn figures(a: f64) -> Figures {

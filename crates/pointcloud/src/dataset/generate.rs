@@ -164,7 +164,7 @@ fn remove_temp_files(dir: &Path) {
         let name = entry.file_name().to_string_lossy().into_owned();
         if path.is_dir() {
             remove_temp_files(&path);
-        } else if name.starts_with('.') && name.ends_with(".tmp") {
+        } else if lgdm_base::fs::temporary_target(&name).is_some() {
             std::fs::remove_file(&path).ok();
         }
     }
