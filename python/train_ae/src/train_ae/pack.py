@@ -135,9 +135,13 @@ def _quantise_depth(depth: np.ndarray) -> tuple[np.ndarray, float]:
 
 def _dequantise_depth(diffs: np.ndarray, base: np.ndarray) -> np.ndarray:
     """float32 (N, H, W) metres, NaN where no depth, from ``_quantise_depth``'s arrays."""
-    q = np.cumsum(diffs, axis=-1, dtype=np.uint16)
-    depth = (base[:, None, None] + q.astype(np.float64) * DEPTH_STEP_M).astype(np.float32)
-    depth[q == DEPTH_NONFINITE] = np.nan
+    depth = np.empty(diffs.shape, np.float32)
+    for i in range(0, len(diffs), 64):  # in chunks: a pack's depth is a few GB as float32
+        q = np.cumsum(diffs[i:i + 64], axis=-1, dtype=np.uint16)
+        d = depth[i:i + 64]
+        np.multiply(q, np.float32(DEPTH_STEP_M), out=d, dtype=np.float32)
+        d += base[i:i + 64, None, None].astype(np.float32)
+        d[q == DEPTH_NONFINITE] = np.nan
     return depth
 
 
