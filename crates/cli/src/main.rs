@@ -8,6 +8,8 @@
 
 mod cmd;
 mod data;
+#[cfg(test)]
+mod docs_examples;
 mod output;
 mod progress;
 

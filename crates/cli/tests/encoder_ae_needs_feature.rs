@@ -18,7 +18,7 @@ fn assert_rebuild_message(stderr: &[u8]) {
         "built without the `ae` feature",
         "cargo build --release -p lgdm-cli --features ae",
         "pip install -e python/train_ae",
-        "README",
+        "docs/guide/grasp-network.md",
     ] {
         assert!(err.contains(needle), "missing {needle:?} in: {err}");
     }

@@ -153,7 +153,7 @@ def test_a_train_sweep_runs_scenarios_whose_cells_merge(small_dataset, tmp_path:
 
 @pytest.fixture
 def two_node_cluster(monkeypatch: pytest.MonkeyPatch):
-    """A Ray cluster of two nodes on this machine (one CPU each), as the README describes it."""
+    """A Ray cluster of two nodes on this machine (one CPU each), as docs/guide/sweeps.md says."""
     import shutil
     import socket
 

@@ -40,8 +40,8 @@ const EXPERIMENT_FLAGS: [&str; 17] = [
 /// Arguments of `lgdm train`.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
-    /// The learning protocol (see README, "Scenarios"); may be left out with `--config` of a
-    /// run's config.toml (the run's scenario) or `--resume`.
+    /// The learning protocol (see docs/guide/training.md, "Scenarios"); may be left out with
+    /// `--config` of a run's config.toml (the run's scenario) or `--resume`.
     #[arg(long, value_parser = scenario_parser())]
     pub scenario: Option<Scenario>,
     /// Dataset directory written by `lgdm gen-dataset` (default: the embedded small dataset,

@@ -19,7 +19,7 @@ built without the `ae` feature (the default build neither links libpython nor ne
 Rebuild it with `cargo build --release -p lgdm-cli --features ae`, and install torch and the \
 autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && \
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
-LGDM_VENV to it); see the README, \"Grasp network\". Or use --encoder good";
+LGDM_VENV to it); see docs/guide/grasp-network.md. Or use --encoder good";
 
 /// The checkpoint to use: `explicit` (`--ae-checkpoint`), else the one shipped with train_ae;
 /// `user` is the option that needs it (`--encoder ae`, `--grasp network`), for messages.

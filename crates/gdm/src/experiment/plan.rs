@@ -4,7 +4,7 @@
 //! A plan is built per trial from the rows' labels alone (collection, category, instance,
 //! sequence, frame) and a seeded RNG, so the same seed gives the same plan.
 //!
-//! Definitions (also in the README, "Scenarios"):
+//! Definitions (also in docs/guide/training.md, "Scenarios"):
 //! - **held-out instances**: in every trial, one instance per category (chosen at random, only
 //!   where the category has at least two) is never trained on; its views in every collection
 //!   form the "new instance" set (category accuracy only), in the training and test collections.
