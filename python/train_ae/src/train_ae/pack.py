@@ -1,6 +1,7 @@
 """Pack grasp-image directories into one compact file, for a machine that has no lgdm.
 
     python -m train_ae.pack --data DIR [--data DIR ...] --out FILE [--size N] [--max-mib 60]
+        [--note TEXT]
 
 Reads every ``--data`` directory the way ``train_ae.train`` does (``data.find_samples_in``:
 ``lgdm gen-dataset``'s geometric ``grasp/`` images and ``lgdm sim grasp-data``'s physics sets
@@ -161,9 +162,10 @@ def _scaled(r: np.ndarray, n: int, size: int) -> np.ndarray:
     return (r + 0.5) * (size / n) - 0.5
 
 
-def build_pack(roots: list[Path], size: int | None = None, progress=None
-               ) -> tuple[dict[str, np.ndarray], dict]:
-    """(arrays by name, manifest) of the directories, in ``roots``' order."""
+def build_pack(roots: list[Path], size: int | None = None, progress=None,
+               note: str | None = None) -> tuple[dict[str, np.ndarray], dict]:
+    """(arrays by name, manifest) of the directories, in ``roots``' order; ``note``: free text
+    kept in the manifest (e.g. which lgdm build generated the data)."""
     roots = [Path(r) for r in roots]
     names = [dataset_name(r) for r in roots]
     if len(set(names)) != len(names):
@@ -247,6 +249,7 @@ def build_pack(roots: list[Path], size: int | None = None, progress=None
         "positives": int(pos.sum()),
         "negatives": int(neg.sum()),
         "datasets": datasets,
+        "note": note,
     }
     arrays = {
         "manifest": np.frombuffer(json.dumps(manifest, sort_keys=True).encode(), np.uint8),
@@ -421,6 +424,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--size", type=int, help="crop side in the pack (default: the images')")
     p.add_argument("--max-mib", type=float, default=DEFAULT_MAX_MIB,
                    help=f"refuse a pack larger than this (default {DEFAULT_MAX_MIB:g} MiB)")
+    p.add_argument("--note", help="free text for the manifest (e.g. the lgdm build)")
     p.add_argument("--quiet", action="store_true")
     a = p.parse_args(argv)
     if not a.max_mib > 0:
@@ -431,7 +435,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"packed {done}/{total} images", file=sys.stderr, flush=True)
 
     try:
-        arrays, manifest = build_pack(a.data, a.size, progress)
+        arrays, manifest = build_pack(a.data, a.size, progress, a.note)
         nbytes = write_pack(arrays, a.out, a.max_mib)
     except (PackError, DatasetError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
