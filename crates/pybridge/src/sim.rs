@@ -92,7 +92,7 @@ impl CallableSource {
         let mut grasps = Vec::with_capacity(list.len().min(k));
         for (i, item) in list.iter().enumerate().take(k) {
             grasps.push(
-                grasp_from(&item, jaw_default)
+                grasp_from(&item, jaw_default, crop.size_px)
                     .map_err(|e| errors::input(format!("grasp {i}: {}", e.value(py))))?,
             );
         }
@@ -101,8 +101,9 @@ impl CallableSource {
 }
 
 /// One grasp from its dict: `center_px` (x, y), `angle` (rad), `width_px`, optional `jaw_px`
-/// and `quality`.
-fn grasp_from(item: &Bound<'_, PyAny>, jaw_default: f32) -> PyResult<DecodedGrasp> {
+/// and `quality`, each a number (not a bool) within what a grasp on a `crop_px` crop can mean;
+/// an error names the field.
+fn grasp_from(item: &Bound<'_, PyAny>, jaw_default: f32, crop_px: u32) -> PyResult<DecodedGrasp> {
     let d = item
         .cast::<PyDict>()
         .map_err(|_| errors::input("is not a dict"))?;
@@ -119,30 +120,60 @@ fn grasp_from(item: &Bound<'_, PyAny>, jaw_default: f32) -> PyResult<DecodedGras
         }
         Ok(x as f32)
     };
-    let centre: Vec<f64> = need("center_px")?
-        .extract()
+    // A bool is a Python int: refused where a number is meant.
+    fn not_bool<'py>(key: &str, v: Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        if v.is_instance_of::<pyo3::types::PyBool>() {
+            return Err(errors::input(format!("`{key}` is a bool, not a number")));
+        }
+        Ok(v)
+    }
+    let centre = need("center_px")?;
+    let centre: Vec<Bound<'_, PyAny>> = centre
+        .try_iter()
+        .and_then(|items| items.collect())
         .map_err(|_| errors::input("`center_px` is not a pair of numbers"))?;
-    let &[x, y] = centre.as_slice() else {
-        return Err(errors::input("`center_px` is not a pair of numbers"));
+    let [cx, cy] = <[Bound<'_, PyAny>; 2]>::try_from(centre)
+        .map_err(|_| errors::input("`center_px` is not a pair of numbers"))?;
+    let x = number("center_px", not_bool("center_px", cx)?)?;
+    let y = number("center_px", not_bool("center_px", cy)?)?;
+    // What cannot be meant: a centre more than a crop away from it, an opening or a jaw wider
+    // than the crop (or not positive), an angle beyond a few turns (lost precision).
+    let side = crop_px as f32;
+    if !(-side..=2.0 * side).contains(&x) || !(-side..=2.0 * side).contains(&y) {
+        return Err(errors::input(format!(
+            "`center_px` ({x}, {y}) is far outside the {crop_px}-px crop"
+        )));
+    }
+    let positive = |key: &str, v: f32| -> PyResult<f32> {
+        if v <= 0.0 || v > 4.0 * side {
+            return Err(errors::input(format!(
+                "`{key}` is {v} px (must be > 0 and at most {} px, four crops)",
+                4.0 * side
+            )));
+        }
+        Ok(v)
     };
-    if !(x.is_finite() && y.is_finite()) {
-        return Err(errors::input("`center_px` is not finite"));
-    }
-    let width_px = number("width_px", need("width_px")?)?;
-    if width_px <= 0.0 {
-        return Err(errors::input(format!("`width_px` is {width_px}")));
-    }
+    let width_px = positive(
+        "width_px",
+        number("width_px", not_bool("width_px", need("width_px")?)?)?,
+    )?;
     let jaw_px = match get("jaw_px")? {
-        Some(v) => number("jaw_px", v)?,
+        Some(v) => positive("jaw_px", number("jaw_px", not_bool("jaw_px", v)?)?)?,
         None => jaw_default,
     };
     let quality = match get("quality")? {
-        Some(v) => number("quality", v)?,
+        Some(v) => number("quality", not_bool("quality", v)?)?,
         None => 1.0,
     };
+    let angle = number("angle", not_bool("angle", need("angle")?)?)?;
+    if angle.abs() > 1e3 {
+        return Err(errors::input(format!(
+            "`angle` is {angle} rad (at most 1000 in size)"
+        )));
+    }
     Ok(DecodedGrasp {
         center_px: [x as f32, y as f32],
-        angle: wrap_angle(number("angle", need("angle")?)?),
+        angle: wrap_angle(angle),
         width_px,
         jaw_px,
         quality,
@@ -431,7 +462,7 @@ fn play(
     seed: u64,
     progress: Option<Py<PyAny>>,
     stop: StopToken,
-    encoder_error: Option<std::sync::Arc<std::sync::Mutex<Option<PyErr>>>>,
+    encoder_error: Option<(String, std::sync::Arc<std::sync::Mutex<Option<PyErr>>>)>,
     play: impl FnOnce(&mut dyn GraspSource, &mut dyn FnMut(Progress)) -> Result<RunResults, SimError>
     + Send,
 ) -> PyResult<String> {
@@ -453,10 +484,12 @@ fn play(
         };
         (result, source)
     });
-    if let Some(e) = encoder_error.and_then(|cell| cell.lock().ok()?.take()) {
+    if let Some((name, e)) =
+        encoder_error.and_then(|(name, cell)| Some((name, cell.lock().ok()?.take()?)))
+    {
         let err = errors::new(
             Kind::Lgdm,
-            format!("the view encoder failed: {}", e.value(py)),
+            format!("the view encoder {name} failed: {}", e.value(py)),
         );
         err.set_cause(py, Some(e));
         return Err(err);
@@ -600,7 +633,7 @@ pub fn sim_pick_place(
         Some(c) => (c.name.clone(), c.dim),
         None => (GoodEncoder.name().to_string(), GoodEncoder.dim()),
     };
-    let encoder_error = callable.as_ref().map(|c| c.error.clone());
+    let encoder_error = callable.as_ref().map(|c| (c.name.clone(), c.error.clone()));
     let encoder: Box<dyn ViewEncoder + Send> = match callable {
         Some(c) => Box::new(c),
         None => Box::new(GoodEncoder),

@@ -142,6 +142,84 @@ def test_a_failing_callable_names_itself_and_keeps_its_exception():
 
 
 @pytest.mark.parametrize(
+    "grasp, field",
+    [
+        ({"jaw_px": 0}, "jaw_px"),
+        ({"jaw_px": -10}, "jaw_px"),
+        ({"jaw_px": True}, "jaw_px"),
+        ({"width_px": 1e9}, "width_px"),
+        ({"width_px": True}, "width_px"),
+        ({"angle": 1e30}, "angle"),
+        ({"angle": False}, "angle"),
+        ({"quality": True}, "quality"),
+        ({"center_px": (1e6, 112)}, "center_px"),
+        ({"center_px": (112, -5000)}, "center_px"),
+        ({"center_px": (True, 112)}, "center_px"),
+    ],
+)
+def test_a_grasp_that_cannot_be_meant_is_refused_naming_the_field(grasp: dict, field: str):
+    def source(crop: dict) -> list:
+        return [{"center_px": (112, 112), "angle": 0.3, "width_px": 60, **grasp}]
+
+    with pytest.raises(lgdm.LgdmError, match=rf"source.*grasp 0: `{field}`"):
+        lgdm.sim.grasp(grasp=source, rounds=1)
+
+
+def test_a_grasp_at_the_limits_is_accepted():
+    def source(crop: dict) -> list:
+        side = crop["rgb"].shape[0]
+        return [{"center_px": (-side + 1, 2 * side - 1), "angle": -999.0, "width_px": 4 * side,
+                 "jaw_px": 0.5, "quality": 0}]  # fmt: skip
+
+    r = lgdm.sim.grasp(grasp=source, rounds=1)
+    assert r["summary"]["attempts"] >= 1
+
+
+def test_a_failing_view_encoder_names_itself():
+    def broken_encoder(points, colors):
+        raise ValueError("no weights")
+
+    with pytest.raises(lgdm.LgdmError, match=r"view encoder .*broken_encoder.*no weights") as e:
+        lgdm.sim.pick_place(attempts=1, seed=1, encoder=(broken_encoder, 4))
+    assert isinstance(e.value.__cause__, ValueError)
+
+
+@pytest.mark.parametrize("writer", ["sim", "train"])
+def test_force_never_clears_a_users_files(writer: str, tmp_path: Path, small_dataset):
+    """A directory holding a user's pictures (or anything a run does not write by that exact
+    name) is refused with force, and left as it was."""
+    p = tmp_path / "p"
+    p.mkdir()
+    for name in ("holiday.png", ".draft.tmp", "nodes.png.bak"):
+        (p / name).write_text("x")
+    (p / "trials").mkdir()
+    (p / "trials" / "holiday.png").write_text("x")
+    before = sorted(str(f.relative_to(p)) for f in p.rglob("*"))
+    for name in ("holiday.png", ".draft.tmp", "nodes.png.bak", "trials"):
+        with pytest.raises(lgdm.LgdmError, match="not part of"):
+            if writer == "sim":
+                lgdm.sim.grasp(rounds=1, out=p, force=True)
+            else:
+                lgdm.run_scenario(lgdm.good_features(small_dataset), "ni", trials=1, out=p,
+                                  force=True)  # fmt: skip
+        assert sorted(str(f.relative_to(p)) for f in p.rglob("*")) == before
+        target = p / name
+        if target.is_dir():
+            (target / "holiday.png").unlink()
+            target.rmdir()
+        else:
+            target.unlink()
+        before = sorted(str(f.relative_to(p)) for f in p.rglob("*"))
+    # Nothing of the user's left: the directory is used.
+    if writer == "sim":
+        lgdm.sim.grasp(rounds=1, out=p, force=True)
+        assert (p / "results.json").is_file()
+    else:
+        lgdm.run_scenario(lgdm.good_features(small_dataset), "ni", trials=1, out=p, force=True)
+        assert (p / "metrics.json").is_file()
+
+
+@pytest.mark.parametrize(
     "kwargs, field",
     [
         ({"scenario": "nowhere"}, "scenario"),
