@@ -108,6 +108,133 @@ def test_bad_specs_are_config_errors_naming_the_field(spec: dict, field: str, tm
     assert not (tmp_path / "cells").exists()
 
 
+@pytest.mark.parametrize(
+    "spec, words",
+    [
+        ({"base": {"rounds": -1}}, ["base.rounds", "-1", "integer from 0"]),
+        ({"base": {"rounds": "three"}}, ["base.rounds", '"three"', "integer from 0"]),
+        ({"base": {"rounds": 2**40}}, ["base.rounds", "integer from 0"]),
+        ({"base": {"record": 1}}, ["base.record", "true or false"]),
+        ({"grid": {"rounds": [2, -1]}}, ["grid.rounds = -1", "rounds=-1,seed=0", "integer"]),
+        ({"grid": {"scenario": ["isolated", "moon"]}}, ["grid.scenario", '"moon"', "one of"]),
+        ({"grid": {"gripper": [3]}}, ["grid.gripper = 3", "one of"]),
+    ],
+)
+def test_values_of_the_wrong_type_name_the_key_the_cells_and_what_was_expected(
+    spec: dict, words: list[str], tmp_path: Path
+):
+    full = {"sweep": {"command": "sim grasp", "seeds": [0]}, **spec}
+    with pytest.raises(lgdm.ConfigError) as e:
+        lgdm.sweep.run(full, out=tmp_path)
+    for word in words:
+        assert word in str(e.value), str(e.value)
+    assert "lgdm.sim.grasp" in str(e.value)
+    assert not (tmp_path / "cells").exists()
+
+
+def _interrupted_sweep(spec: Path, out: Path, mark: str, finished: str) -> list[str]:
+    """Runs the sweep in its own process group and SIGKILLs it (Ray's processes with it) as
+    soon as a cell holds ``mark`` but not ``finished``; returns those cells' names."""
+    import os
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 300
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            half = [c for c in (out / "cells").glob("*") if (c / mark).is_file()
+                    and not (c / finished).is_file()]  # fmt: skip
+            if half:
+                break
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    time.sleep(1)  # Ray's workers die with their raylet
+    return [c.name for c in (out / "cells").glob("*")
+            if (c / mark).is_file() and not (c / finished).is_file()]  # fmt: skip
+
+
+def _cells(out: Path, name: str) -> dict[str, bytes]:
+    return {c.name: (c / name).read_bytes() for c in sorted((out / "cells").glob("*"))}
+
+
+def test_a_sweep_killed_while_a_sim_cell_runs_resumes_to_the_straight_sweep(tmp_path: Path):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        '[sweep]\ncommand = "sim grasp"\nseeds = [0, 1]\n\n'
+        '[base]\nscenario = "isolated"\nrounds = 6\n\n[grid]\ngrasp = ["analytic"]\n'
+    )
+    straight = tmp_path / "straight"
+    lgdm.sweep.run(spec, out=straight)
+    out = tmp_path / "killed"
+    half = _interrupted_sweep(spec, out, "job.json", "results.json")
+    assert half, "the sweep was not caught while a cell ran"
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out), "--resume"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for name, text in _cells(out, "results.json").items():
+        assert without_wall(json.loads(text)) == without_wall(
+            json.loads(_cells(straight, "results.json")[name])
+        ), name
+    assert (out / "table.csv").read_text() == (straight / "table.csv").read_text()
+
+
+def test_a_sweep_killed_while_a_train_cell_runs_resumes_to_the_straight_sweep(
+    small_dataset, tmp_path: Path
+):
+    from test_cli import without_times
+
+    spec = tmp_path / "train.toml"
+    spec.write_text(
+        '[sweep]\ncommand = "train"\nseeds = [0, 1]\n\n'
+        f'[base]\ndataset = "{small_dataset.path}"\nscenario = "ni"\ntrials = 3\n'
+    )
+    straight = tmp_path / "straight"
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(straight)],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    out = tmp_path / "killed"
+    half = _interrupted_sweep(spec, out, "config.toml", "metrics.json")
+    assert half, "the sweep was not caught while a cell ran"
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out), "--resume"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for name, text in _cells(out, "metrics.json").items():
+        assert without_times(json.loads(text)) == without_times(
+            json.loads(_cells(straight, "metrics.json")[name])
+        ), name
+    assert (out / "table.csv").read_text() == (straight / "table.csv").read_text()
+
+
+def test_resume_starts_afresh_a_cell_that_left_nothing_worth_resuming(tmp_path: Path):
+    spec = {"sweep": {"command": "sim grasp", "seeds": [0]}, "base": {"rounds": 1}}
+    cell = tmp_path / "cells" / "seed=0"
+    cell.mkdir(parents=True)
+    (cell / "summary.txt").write_text("half\n")  # a run's file, no job record
+    rows = lgdm.sweep.run(spec, out=tmp_path, resume=True)
+    assert rows[0]["status"] == "ok"
+    # A user's file in a cell is never cleared: the cell fails, naming it.
+    other = tmp_path / "other"
+    (other / "cells" / "seed=0").mkdir(parents=True)
+    (other / "cells" / "seed=0" / "holiday.png").write_text("x")
+    rows = lgdm.sweep.run(spec, out=other, resume=True)
+    assert "holiday.png" in rows[0]["status"]
+    assert (other / "cells" / "seed=0" / "holiday.png").read_text() == "x"
+
+
 def test_a_train_sweep_runs_scenarios_whose_cells_merge(small_dataset, tmp_path: Path):
     """``command = "train"``: each cell is the run directory ``run_scenario(out=…)`` writes
     alone (metrics.json but wall times), the table reports the test accuracies, and the cells of

@@ -28,7 +28,9 @@ Each cell — one setting of the grid and one seed — is one Ray task that runs
 summary's rates; ``OUT/nodes.json`` says where each cell ran) and ``OUT/summary.csv`` with
 ``OUT/summary.png`` (per setting and rate: the mean over the seeds and its 95 % t interval). A
 failing cell is reported with its error while the others finish; ``resume=True`` keeps every
-cell whose run directory holds its results and runs only the rest.
+cell whose run directory holds its results, finishes a cell that was interrupted while it ran
+(``lgdm.sim.resume`` or ``lgdm.resume_scenario`` on its directory: the straight run's
+results), starts afresh a cell that left nothing worth resuming, and runs the rest.
 
 Without ``address`` Ray starts on this machine (nothing to set up); with an address
 (``ray start --head`` prints it) the cells go to that cluster. Ray is an optional extra:
@@ -40,11 +42,15 @@ Command line: ``python -m lgdm.sweep SPEC.toml --out DIR [--address ADDR] [--res
 from __future__ import annotations
 
 import argparse
+import collections.abc
 import csv
+import inspect
 import itertools
 import json
 import math
 import sys
+import types
+import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
@@ -165,10 +171,10 @@ def check_spec(spec: Mapping[str, Any]) -> None:
     both = set(base) & set(grid)
     if both:
         raise ConfigError(f"{sorted(both)} in both [base] and [grid]")
-    import inspect
-
     from . import sim
+    from ._experiment import run_scenario
 
+    function = None
     if sweep["command"] == "train":
         if "dataset" not in base:
             raise ConfigError("base.dataset: a train sweep needs a dataset directory")
@@ -177,8 +183,6 @@ def check_spec(spec: Mapping[str, Any]) -> None:
             raise ConfigError("base.scenario: a train sweep needs a scenario (or grid.scenario)")
         # run_scenario's keywords, and hyperparameter overrides (section__field), which
         # run_scenario checks when the cell runs.
-        from ._experiment import run_scenario
-
         known = set(inspect.signature(run_scenario).parameters) - {"table", "overrides"}
         known |= {"dataset", "scenario"}
         known |= {k for k in (*base, *grid) if "__" in k}
@@ -191,6 +195,93 @@ def check_spec(spec: Mapping[str, Any]) -> None:
         wrong = set(keys) - known
         if wrong:
             raise ConfigError(f"{table}: {sorted(wrong)} are not options of {where}")
+    hints = _parameter_hints(run_scenario if sweep["command"] == "train" else function)
+    for key, value in base.items():
+        _check_value(f"base.{key}", value, hints.get(key), where)
+    for key, values in grid.items():
+        for value in values:
+            cell = ",".join(c.name for c in cells(spec) if dict(c.setting)[key] == value)
+            at = f"grid.{key} = {_toml(value)} (cells {cell})"
+            _check_value(at, value, hints.get(key), where)
+
+
+def _parameter_hints(function: Any) -> dict[str, Any]:
+    """``function``'s parameter annotations, evaluated; one that cannot be is left out (and its
+    values are then checked by the call)."""
+    hints = {}
+    for name, parameter in inspect.signature(function).parameters.items():
+        annotation = parameter.annotation
+        if isinstance(annotation, str):
+            try:
+                annotation = eval(annotation, function.__globals__)
+            except Exception:
+                continue
+        hints[name] = annotation
+    return hints
+
+
+def _toml(value: Any) -> str:
+    return json.dumps(value) if isinstance(value, str) else repr(value)
+
+
+#: The largest count or index a cell may pass (the Rust side's 32-bit counts).
+_MAX_INT = 2**32 - 1
+
+
+def _expected(hint: Any) -> str | None:
+    """What ``hint`` expects of a value from a TOML spec, in words; ``None`` when a spec
+    cannot give such a value anyway (callables) or anything goes."""
+    if hint is None or hint is Any:
+        return None
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Literal:
+        return "one of " + ", ".join(_toml(a) for a in args)
+    if origin in (typing.Union, types.UnionType):
+        words = [w for a in args if a is not type(None) for w in [_expected(a)] if w]
+        if any(a is not type(None) and _expected(a) is None for a in args):
+            return None
+        return " or ".join(dict.fromkeys(words))
+    if hint is bool:
+        return "true or false"
+    if hint is int:
+        return f"an integer from 0 to {_MAX_INT}"
+    if hint is float:
+        return "a finite number"
+    if hint is str or hint is PathLike or origin is PathLike:
+        return "a string"
+    if origin in (list, collections.abc.Sequence):
+        return "a list of strings"
+    return None
+
+
+def _fits(value: Any, hint: Any) -> bool:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Literal:
+        return any(value == a and type(value) is type(a) for a in args)
+    if origin in (typing.Union, types.UnionType):
+        return any(
+            (value is None) if a is type(None) else _fits(value, a) for a in args
+        )
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= _MAX_INT
+    if hint is float:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        return ok and math.isfinite(value)
+    if hint is str or hint is PathLike or origin is PathLike:
+        return isinstance(value, str)
+    if origin in (list, collections.abc.Sequence):
+        return isinstance(value, list) and all(isinstance(v, str) for v in value)
+    return True
+
+
+def _check_value(where_in_spec: str, value: Any, hint: Any, function: str) -> None:
+    """Refuses a value a cell could not pass to ``function``, naming the key, the cells and
+    what was expected (not the raw ``TypeError``/``OverflowError`` of the call)."""
+    expected = _expected(hint)
+    if expected is not None and not _fits(value, hint):
+        raise ConfigError(f"{where_in_spec}: {_toml(value)} is not {expected} ({function})")
 
 
 def cells(spec: Mapping[str, Any]) -> list[Cell]:
@@ -204,15 +295,25 @@ def cells(spec: Mapping[str, Any]) -> list[Cell]:
     return out
 
 
-def _run_cell(spec: Mapping[str, Any], cell: Cell, out: str) -> dict[str, Any]:
-    """Runs one cell into ``out``; ``{"summary": …}`` or ``{"error": …}``."""
+def _run_cell(
+    spec: Mapping[str, Any], cell: Cell, out: str, start: str = "fresh"
+) -> dict[str, Any]:
+    """Runs one cell into ``out``; ``{"summary": …}`` or ``{"error": …}``. ``start`` is how
+    (:func:`_how_to_start`): ``"fresh"``, ``"resume"`` (finish the interrupted run there) or
+    ``"restart"`` (replace what an interrupted start left, which is only a run's own files)."""
     from . import sim
 
     kwargs = {**spec.get("base", {}), **dict(cell.setting), "seed": cell.seed, "out": out}
-    if spec["sweep"]["command"] == "train":
+    train = spec["sweep"]["command"] == "train"
+    if start == "resume":
+        function = _resume_train_cell if train else _resume_sim_cell
+        kwargs = {"out": out, "dataset": kwargs.get("dataset")}
+    elif train:
         function = _train_cell
     else:
         function = getattr(sim, COMMANDS[spec["sweep"]["command"]])
+    if start == "restart":
+        kwargs["force"] = True
     node = None
     try:
         import ray
@@ -236,6 +337,36 @@ def _train_cell(*, dataset: str, scenario: str, **kwargs: Any) -> dict[str, Any]
 
     metrics = run_scenario(good_features(Dataset(dataset)), scenario, **kwargs)
     return {"summary": _train_summary(metrics)}
+
+
+def _resume_sim_cell(*, out: str, dataset: Any = None) -> dict[str, Any]:
+    """An interrupted robot cell finished as ``lgdm.sim.resume`` does (its own ``job.json``)."""
+    from . import sim
+
+    return sim.resume(out)
+
+
+def _resume_train_cell(*, out: str, dataset: str) -> dict[str, Any]:
+    """An interrupted ``train`` cell finished as ``lgdm.resume_scenario`` does."""
+    from ._data import Dataset, good_features
+    from ._experiment import resume_scenario
+
+    metrics = resume_scenario(good_features(Dataset(dataset)), out)
+    return {"summary": _train_summary(metrics)}
+
+
+def _how_to_start(out: Path) -> str:
+    """How a cell that has not finished starts: ``"fresh"`` in a missing or empty directory;
+    ``"resume"`` where an interrupted run left its record (``job.json`` of a robot run,
+    ``config.toml`` of a ``train`` run); ``"restart"`` where an interrupted start left less
+    than that (only a run's own files are then removed; anything else stops the cell)."""
+    if (out / "job.json").is_file() or (out / "config.toml").is_file():
+        return "resume"
+    try:
+        entries = [p for p in out.iterdir() if p.name != ".lgdm.lock"]
+    except OSError:
+        return "fresh"
+    return "restart" if entries else "fresh"
 
 
 def _train_summary(metrics: Mapping[str, Any]) -> dict[str, Any]:
@@ -284,6 +415,7 @@ def run(
     all_cells = cells(spec)
     outcome: dict[Cell, dict[str, Any]] = {}
     pending = []
+    start: dict[Cell, str] = {}
     for cell in all_cells:
         cell_dir = out / "cells" / cell.name
         done = _finished(cell_dir) if resume else None
@@ -291,6 +423,7 @@ def run(
             outcome[cell] = done
         else:
             pending.append(cell)
+            start[cell] = _how_to_start(cell_dir) if resume else "fresh"
     (out / "spec.json").write_text(json.dumps(spec, indent=2, sort_keys=True) + "\n")
     if pending:
         started = not ray.is_initialized()
@@ -301,7 +434,7 @@ def run(
         try:
             task = ray.remote(num_cpus=1)(_run_cell)
             refs = {
-                task.remote(dict(spec), cell, str(out / "cells" / cell.name)): cell
+                task.remote(dict(spec), cell, str(out / "cells" / cell.name), start[cell]): cell
                 for cell in pending
             }
             waiting = list(refs)
