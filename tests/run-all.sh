@@ -19,6 +19,8 @@ cd "$root"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$root/target}
 venv=${LGDM_VENV:-$HOME/.cache/lgdm/venv}
 export LGDM_VENV="$venv"
+# tests/pytest_no_skips.py (loaded with -p below): a skipped test fails the run.
+export PYTHONPATH="$root/tests${PYTHONPATH:+:$PYTHONPATH}"
 
 step() { printf '\n== %s ==\n' "$*"; }
 
@@ -47,16 +49,16 @@ step "python: build and install the lgdm module (maturin)"
 )
 
 step "python: lint, tests"
-"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python examples
+"$venv/bin/ruff" check crates/pybridge/python crates/pybridge/tests crates/pybridge/bench python examples tests/pytest_no_skips.py
 # -rs: say why a test was skipped (test_cli.py needs the release `lgdm` binary built above).
-"$venv/bin/python" -m pytest -q -rs crates/pybridge/tests
+"$venv/bin/python" -m pytest -q -rs -p pytest_no_skips crates/pybridge/tests
 
 step "python: the grasp autoencoder (python/train_ae; pulls torch into the venv on first use: ~5.8 GB with its CUDA wheels)"
 "$venv/bin/python" -m pip install -q -e python/train_ae
 "$venv/bin/ruff" check python/train_ae
 # test_ceiling.py generates grasp images with the release binary built above (-rs: say why a
 # test was skipped).
-LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q -rs python/train_ae/tests
+LGDM_BIN="$CARGO_TARGET_DIR/release/lgdm" "$venv/bin/python" -m pytest -q -rs -p pytest_no_skips python/train_ae/tests
 
 step "rust ↔ torch bridge (lgdm-pybridge feature ae, embedded Python from the venv)"
 VIRTUAL_ENV="$venv" cargo test --release -p lgdm-pybridge --features ae --lib --test ae_bridge
@@ -67,4 +69,4 @@ step "a grasp network as a Python callable (examples/python): the grasps and cou
 # and so the grasps, depend on its thread count: one thread on both sides.
 VIRTUAL_ENV="$venv" cargo build --release -q -p lgdm-cli --features ae
 VIRTUAL_ENV="$venv" OMP_NUM_THREADS=1 LGDM_AE_BIN="$CARGO_TARGET_DIR/release/lgdm" \
-  "$venv/bin/python" -m pytest -q -rs examples/python
+  "$venv/bin/python" -m pytest -q -rs -p pytest_no_skips examples/python

@@ -136,10 +136,20 @@ def test_bad_labels_and_sequences(fitted, kwargs, message):
     assert fitted.to_bytes() == before
 
 
-def test_label_dtypes_are_accepted(fitted):
-    x = np.zeros((3, 16))
-    for dtype in (np.int8, np.int32, np.uint16, np.uint32, np.uint64):
-        fitted.partial_fit(x, instance=np.array([0, 1, 2], dtype=dtype), category=np.uint8(1))
+def test_label_dtypes_are_accepted():
+    """Labels of any integer dtype are learnt as the same numbers: a model given the same
+    samples and labels in each dtype answers with those labels."""
+    rng = np.random.default_rng(0)
+    x = np.repeat(np.eye(3, 16) * 5.0, 20, axis=0) + rng.normal(0, 0.01, (60, 16))
+    answers = []
+    for dtype in (np.int8, np.int32, np.uint16, np.uint32, np.uint64, np.int64):
+        instance = np.repeat(np.array([3, 5, 7], dtype=dtype), 20)
+        category = np.repeat(np.array([1, 2, 2], dtype=dtype), 20)
+        model = lgdm.GDM(seed=0).fit(x, instance, category, epochs=3)
+        p = model.predict(np.eye(3, 16) * 5.0)
+        answers.append((list(p.instance), list(p.category)))
+    assert answers[0] == ([3, 5, 7], [1, 2, 2])
+    assert all(a == answers[0] for a in answers)
 
 
 def test_not_fitted():

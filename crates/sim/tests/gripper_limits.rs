@@ -166,6 +166,7 @@ fn a_long_stroke_falls_back_to_a_narrower_plan_for_a_glass() {
     let with = grasp_run_with(tmp.path(), Scenario::Isolated, 3, config.clone());
     config.attempt.fallback_openings_m.clear();
     let without = grasp_run_with(tmp.path(), Scenario::Isolated, 3, config);
+    assert!(!without.attempts.is_empty(), "the run made no attempt");
     assert!(
         without.attempts.iter().all(|a| a.grasp.is_none()),
         "full-stroke planning finds no grasp on the glass"

@@ -50,12 +50,20 @@ fn count(max: usize) -> impl Strategy<Value = usize> {
     ]
 }
 
-/// Whether `r` is a preparation or a refusal that names its setting.
-fn named(r: Result<(), SimError>) -> Result<(), TestCaseError> {
+/// Whether `r` is a preparation where every setting is valid (`wrong` empty), or a refusal
+/// that names a setting: one of `wrong` when the case broke a rule of its own.
+fn named(r: Result<(), SimError>, wrong: &[&str]) -> Result<(), TestCaseError> {
     match r {
-        Ok(()) => Ok(()),
+        Ok(()) => {
+            prop_assert!(wrong.is_empty(), "prepared although {wrong:?} are wrong");
+            Ok(())
+        }
         Err(SimError::Setting { name, .. }) => {
             prop_assert!(SETTINGS.contains(&name), "unknown setting {name}");
+            prop_assert!(
+                wrong.is_empty() || wrong.contains(&name),
+                "refused naming {name}, but {wrong:?} are the wrong ones"
+            );
             Ok(())
         }
         Err(SimError::Recognition(RecognitionError::InvalidConfig { field, .. })) => {
@@ -93,7 +101,16 @@ proptest! {
             prop_assert!(job.spec().rounds <= MAX_ROUNDS);
             prop_assert!(job.library().objects.len() <= 10 * 100);
         }
-        named(prepared.map(|_| ()))?;
+        // Every rule of a grasp setup: a case that breaks none is prepared.
+        let mut wrong = Vec::new();
+        if rounds == 0 || rounds > MAX_ROUNDS {
+            wrong.push("rounds");
+        }
+        if instances == 0 || instances > 100 {
+            wrong.push("instances");
+        }
+        prop_assert_eq!(prepared.is_ok(), wrong.is_empty());
+        named(prepared.map(|_| ()), &wrong)?;
     }
 
     #[test]
@@ -141,6 +158,30 @@ proptest! {
                 .iter()
                 .all(|t| job.set().iter().any(|o| &o.category == t))));
         }
-        named(prepared.map(|_| ()))?;
+        // The rules every case can be checked against (the targets' depend on the set drawn):
+        // a case that breaks one is refused.
+        let mut wrong = Vec::new();
+        if rounds.is_some_and(|r| r == 0 || r > MAX_ROUNDS) {
+            wrong.push("rounds");
+        }
+        if attempts == Some(0) {
+            wrong.push("attempts");
+        }
+        if set_size == 0 || set_size > 50 {
+            wrong.push("objects");
+        }
+        if scenario == Scenario::Isolated {
+            wrong.push("scenario");
+        }
+        let bad_confidence = !(0.0..=1.0).contains(&confidence);
+        if !wrong.is_empty() || bad_confidence {
+            prop_assert!(prepared.is_err(), "prepared although {wrong:?} are wrong");
+        }
+        // A refusal may name what this case cannot know beforehand (the targets against the
+        // set drawn, the arrival) before the broken rule.
+        if !wrong.is_empty() {
+            wrong.extend(["targets", "arrive-after"]);
+        }
+        named(prepared.map(|_| ()), if bad_confidence { &[] } else { &wrong })?;
     }
 }

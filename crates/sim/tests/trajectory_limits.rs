@@ -285,8 +285,8 @@ fn linear_move_to_the_start_pose_is_a_hold() {
     assert_eq!(traj.sample(0.5), q);
 }
 
-#[test]
-fn same_inputs_give_same_bits() {
+/// The bits of a planned move and its way back, as hex (the child process prints them).
+fn planned_bits() -> String {
     let arm = ArmModel::ur5e();
     let run = || {
         let mut ik = IkSolver::new(arm.clone(), IkConfig::default()).unwrap();
@@ -305,5 +305,40 @@ fn same_inputs_give_same_bits() {
         }
         bits
     };
-    assert_eq!(run(), run());
+    let bits = run();
+    assert!(bits.len() > 200, "a move and its way back, sampled");
+    bits.iter().map(|b| format!("{b:016x}")).collect()
+}
+
+/// The same inputs give the same bits in another process too (nothing depends on addresses,
+/// hash seeds or the time): the test runs itself as a child, which prints its bits.
+#[test]
+fn same_inputs_give_same_bits() {
+    const CHILD: &str = "LGDM_TRAJECTORY_BITS_CHILD";
+    let here = planned_bits();
+    if std::env::var_os(CHILD).is_some() {
+        println!("bits={here}");
+        return;
+    }
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "same_inputs_give_same_bits",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env(CHILD, "1")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let child = text
+        .lines()
+        .find_map(|l| l.split_once("bits=").map(|(_, b)| b.trim()))
+        .expect("the child printed its bits");
+    assert_eq!(child, here);
 }
