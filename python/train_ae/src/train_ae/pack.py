@@ -9,7 +9,7 @@ alike, the jaws must agree) and writes one zip of ``.npy`` arrays (``numpy.load`
 nothing is pickled):
 
 * ``rgb`` uint8 (N, S, S, 3); ``depth`` uint16 (N, S, S): metres as ``depth_base[i] + q *
-  depth_step_m`` (``DEPTH_STEP_M``, 0.1 mm; ``DEPTH_NONFINITE`` marks a pixel without depth),
+  depth_step_m`` (``DEPTH_STEP_M``, 0.2 mm; ``DEPTH_NONFINITE`` marks a pixel without depth),
   stored as differences along each row (mod 2^16), which deflate packs far better;
   ``depth_base`` float64 (N,);
 * ``corners`` float32 (R, 4, 2): every rectangle's corners (NaN rectangles skipped, as the
@@ -63,9 +63,9 @@ from .grasp import GraspRectangle
 FORMAT = "lgdm.train_ae.pack.v1"
 """Value of the manifest's ``format``."""
 
-DEPTH_STEP_M = 1e-4
-"""Depth quantum (0.1 mm): a tenth of a 224-px crop's 1 mm pixel; the rendered depth's
-own noise is coarser."""
+DEPTH_STEP_M = 2e-4
+"""Depth quantum (0.2 mm): a fifth of a 224-px crop's 1 mm pixel; the robot's depth
+noise (grasp-data: up to 1.5 mm) is coarser."""
 
 DEPTH_NONFINITE = 65535
 """Quantised value of a pixel without a finite depth (read back as NaN)."""
@@ -102,10 +102,22 @@ def _source_record(root: Path) -> dict | None:
             continue
         if not isinstance(raw, dict):
             continue
-        kept = {k: v for k, v in raw.items()
-                if not isinstance(v, list) and len(json.dumps(v)) <= 4096}
-        return {"file": path.name, **kept}
+        return {"file": path.name, **_small(raw)}
     return None
+
+
+def _small(record: dict, depth: int = 0) -> dict:
+    """A record without its lists and without values over 4 KB of JSON; a large object keeps
+    its small values (two levels: grasp-data's ``setup`` keeps its seed, not its config)."""
+    out = {}
+    for k, v in record.items():
+        if isinstance(v, list):
+            continue
+        if len(json.dumps(v)) <= 4096:
+            out[k] = v
+        elif isinstance(v, dict) and depth < 1:
+            out[k] = _small(v, depth + 1)
+    return out
 
 
 def _find_seed(record: dict | None) -> int | None:
