@@ -158,7 +158,7 @@ pub(crate) struct Detail {
 
 impl Gdm {
     /// An untrained model for `dim`-dimensional features (1 ≤ `dim` ≤
-    /// [`MAX_DIM`](crate::config::MAX_DIM) = 2²⁰). Each memory starts empty and takes its first
+    /// [`MAX_DIM`] = 2²⁰). Each memory starts empty and takes its first
     /// two training samples as its first two nodes.
     pub fn new(config: GdmConfig, dim: usize) -> Result<Gdm, GdmError> {
         config.validate()?;

@@ -1,6 +1,6 @@
 //! The grasp autoencoder's maps decoded as `python -m train_ae.evaluate` decodes them, and the
 //! grasps moved from the network's input pixels back to the crop's: one home for the `ae`
-//! bridge's network source ([`crate::ae::grasps`]) and for Python (`lgdm.sim.decode_grasps`), so
+//! bridge's network source (`ae::grasps`, cargo feature `ae`) and for Python (`lgdm.sim.decode_grasps`), so
 //! a grasp network wrapped as a Python callable gives the robot the same grasps, bit for bit.
 
 use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams, InputCrop};

@@ -90,3 +90,16 @@ def test_the_python_modules_are_typed_and_export_what_they_name():
             assert not missing, f"{module.__name__}.{name}: {missing} not annotated"
             assert signature.return_annotation is not signature.empty, f"{name}: no return type"
             assert inspect.getdoc(obj), f"{module.__name__}.{name} has no docstring"
+
+
+def test_the_crate_front_page_example_runs():
+    """The Python example on `lgdm-pybridge`'s front page (its lib.rs docs) runs as written."""
+    import re
+
+    lib = Path(__file__).resolve().parents[1] / "src" / "lib.rs"
+    docs = "\n".join(line[4:] for line in lib.read_text().splitlines() if line.startswith("//! "))
+    blocks = re.findall(r"```python\n(.*?)```", docs, re.S)
+    assert blocks, "the front page has a Python example"
+    scope: dict = {}
+    exec(compile(blocks[0], str(lib), "exec"), scope)
+    assert scope["m"].n_features_in_ == 3
