@@ -81,7 +81,7 @@ def grasp_loss(maps: GraspMaps, targets: torch.Tensor, loss: str = "weighted",
     if not width_weight > 0:
         raise ValueError(f"width_weight must be positive, got {width_weight}")
     positive = (targets[:, 0] > 0).to(targets.dtype)
-    scale = torch.ones(len(targets), 1, 1, dtype=targets.dtype)
+    scale = torch.ones(len(targets), 1, 1, dtype=targets.dtype, device=targets.device)
     if balance_images:
         count = positive.sum(dim=(1, 2))
         has = count > 0
