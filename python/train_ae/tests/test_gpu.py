@@ -187,3 +187,25 @@ def test_gpu_trainer_keeps_its_checkpoints_when_evaluation_fails(packed, tmp_pat
     assert set(record["outputs"]) == {"cpu.pt", "cpu-distilled.pt"}
     assert "decoder exploded" in record["phases"]["cpu"]["heldout"]["error"]
     assert bridge.input_size(bridge.load(str(out / "cpu-distilled.pt"))) == 112
+
+
+def test_the_kept_gpu_run_is_what_its_record_says():
+    """``gpu-runs/2026-12-04``: the student's bytes are the ones its record names, and it loads
+    as a `cpu` network the bridge runs."""
+    import hashlib
+    import json
+    from pathlib import Path
+
+    import torch
+
+    from train_ae import bridge
+
+    run = Path(__file__).resolve().parents[1] / "gpu-runs" / "2026-12-04"
+    record = json.loads((run / "record.json").read_text())
+    student = run / "cpu-distilled.pt"
+    assert hashlib.sha256(student.read_bytes()).hexdigest() == record["outputs"][student.name]
+    assert record["machine"]["gpu"] == "NVIDIA H200"
+    net = bridge.load(student)
+    with torch.no_grad():
+        out = net(torch.zeros(1, 4, 112, 112))
+    assert len(out) >= 4
