@@ -7,7 +7,7 @@
 //!
 //! The scene is built fresh for every iteration outside the timing (`iter_batched`). The
 //! headless 750-attempt figure comes from `lgdm sim grasp` itself (its summary prints wall time
-//! per attempt and where it goes); see the README.
+//! per attempt and where it goes); see docs/results.md, "Speed".
 //!
 //! `full_attempt_ycb` is the same attempt on one of the paper's YCB objects with the paper's
 //! gripper (2F-140): `LGDM_BENCH_YCB=DIR` names a directory `lgdm sim objects --out DIR` wrote

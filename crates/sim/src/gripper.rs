@@ -126,7 +126,7 @@ pub enum GripperModel {
     /// every object of the paper's set (the master chef can is 102 mm across) and, planning
     /// again for 85 mm when its stroke finds nothing ([`crate::attempt::AttemptConfig`]'s
     /// `fallback_openings_m`), grasps the procedural objects at least as well as the 2F-85
-    /// (README, "The paper's objects").
+    /// (docs/results.md, "The paper's objects").
     #[default]
     Robotiq2F140,
 }

@@ -73,7 +73,7 @@ pub const NETWORK_NOT_BUILT: &str = "--grasp network needs the torch grasp autoe
 needs torch). Rebuild it with `cargo build --release -p lgdm-cli --features ae`, and install torch \
 and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && \
 ~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
-LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
+LGDM_VENV to it); see docs/guide/grasp-network.md. Or use --grasp analytic or --grasp random";
 
 /// The grasp source `grasp`, loaded once for the whole run. `ae_encoder`: whether recognition
 /// uses the autoencoder (then `--ae-checkpoint` applies without `--grasp network`); `None` for
