@@ -1,7 +1,25 @@
 //! The Foxglove messages of a recording: `/scene` entities for bodies, scenery, labels and the
 //! grasp, transforms and poses, colours and metadata.
 
-use super::*;
+use foxglove::messages::{
+    ArrowPrimitive, Color, CubePrimitive, CylinderPrimitive, FrameTransform, KeyValuePair,
+    LinePrimitive, Point3, Pose as FgPose, Quaternion, SceneEntity, SpherePrimitive, TextPrimitive,
+    TriangleListPrimitive, Vector3,
+};
+use lgdm_pointcloud::dataset::foxglove_timestamp;
+use lgdm_pointcloud::mesh::Mesh;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3 as NVector3};
+use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
+
+use super::storyboard::outcome_text;
+use crate::attempt::Execution;
+use crate::camera::{BASKET_RGB, TABLE_RGB};
+use crate::captions::{LabelTone, ObjectLabel};
+use crate::observe::GraspShown;
+use crate::world::{ObjectHandle, World, rapier_to_isometry};
+
+/// The root frame of every transform.
+pub const WORLD_FRAME: &str = "world";
 
 pub(super) const ARM_RGBA: [f64; 4] = [0.55, 0.62, 0.72, 1.0];
 pub(super) const PALM_RGBA: [f64; 4] = [0.22, 0.22, 0.25, 1.0];

@@ -54,31 +54,25 @@ use std::io::Cursor;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use foxglove::messages::{
-    ArrowPrimitive, CameraCalibration, Color, CubePrimitive, CylinderPrimitive, FrameTransform,
-    FrameTransforms, KeyValuePair, LinePrimitive, Log, Point3, Pose as FgPose, Quaternion,
-    RawImage, SceneEntity, SceneEntityDeletion, SceneUpdate, SpherePrimitive, TextPrimitive,
-    TriangleListPrimitive, Vector3,
+    CameraCalibration, FrameTransforms, Log, RawImage, SceneEntity, SceneEntityDeletion,
+    SceneUpdate,
 };
 use lgdm_pointcloud::dataset::{
     foxglove_pose, foxglove_schema, foxglove_timestamp, foxglove_writer,
 };
-use lgdm_pointcloud::grasp::GraspRectangle;
 use lgdm_pointcloud::grasp::cornell::draw_rectangles;
 use lgdm_pointcloud::image::RgbImage;
-use lgdm_pointcloud::math::{Pose, transform_point};
-use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::render::Camera;
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3 as NVector3};
 use prost::Message as _;
 use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
 use serde::{Deserialize, Serialize};
 
 use crate::attempt::Cell;
 use crate::attempt::Execution;
-use crate::camera::{BASKET_RGB, OverviewCamera, SceneFrame, TABLE_RGB};
 use crate::camera::{CameraConfig, render_world};
+use crate::camera::{OverviewCamera, SceneFrame};
 use crate::captions::{
-    LabelTone, ObjectLabel, attempt_caption, recognition_caption, recognition_label, round_summary,
+    ObjectLabel, attempt_caption, recognition_caption, recognition_label, round_summary,
 };
 use crate::observe::{GraspShown, ObserverError, RecordCamera, RoundInfo, RunObserver};
 use crate::packing::{BasketChoice, basket_name};
@@ -93,6 +87,7 @@ mod storyboard;
 
 use messages::*;
 
+pub use messages::WORLD_FRAME;
 pub use storyboard::outcome_text;
 use storyboard::*;
 
@@ -106,8 +101,6 @@ pub const TOPIC_GRASP: &str = "/grasp";
 pub const TOPIC_EVENTS: &str = "/events";
 /// The `/labels` topic.
 pub const TOPIC_LABELS: &str = "/labels";
-/// The root frame of every transform.
-pub const WORLD_FRAME: &str = "world";
 
 /// What to record. Defaults are stated per field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

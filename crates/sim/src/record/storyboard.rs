@@ -1,7 +1,14 @@
 //! The PNG storyboard of a recorded round: one row per attempt (the crop with the chosen grasp,
 //! the overview before and after, the basket after) and its caption.
 
-use super::*;
+use lgdm_pointcloud::grasp::GraspRectangle;
+use lgdm_pointcloud::image::RgbImage;
+use lgdm_pointcloud::math::{Pose, transform_point};
+use lgdm_pointcloud::render::Camera;
+
+use crate::attempt::Execution;
+use crate::camera::SceneFrame;
+use crate::observe::GraspShown;
 
 /// What the storyboard shows of one attempt.
 #[derive(Debug, Clone, Default)]
