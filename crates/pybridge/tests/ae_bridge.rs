@@ -14,7 +14,7 @@ use lgdm_pointcloud::objects::procedural_library;
 use lgdm_pointcloud::segment::SegmentParams;
 use lgdm_pybridge::ae::robot::NetworkSource;
 use lgdm_pybridge::ae::{self, AeError, AutoEncoder, FEATURE_DIM};
-use lgdm_sim::source::{GraspQuery, GraspSource};
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource};
 use numpy::ndarray::{Array2, Array3, Array4};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;

@@ -26,16 +26,16 @@ use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
-use lgdm_sim::attempt::{AttemptConfig, Cell, ProposalCheck, execute, park, plan_grasp};
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::grasping::attempt::{AttemptConfig, Cell, ProposalCheck, execute, park, plan_grasp};
+use lgdm_sim::grasping::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
 use lgdm_sim::perception::{ObjectView, Perception};
+use lgdm_sim::physics::shapes::{LibraryShapes, ShapeConfig};
+use lgdm_sim::physics::world::{World, WorldConfig};
 use lgdm_sim::robot::RobotConfig;
-use lgdm_sim::runner::checked_grasps;
-use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
+use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::runner::checked_grasps;
 use lgdm_sim::timing::WallTimes;
-use lgdm_sim::world::{World, WorldConfig};
 
 struct Scene {
     cell: Cell,

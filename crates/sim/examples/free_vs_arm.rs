@@ -1,6 +1,6 @@
 //! Do the labels of `lgdm sim grasp-data` say what the arm would do? The same grasp plans,
-//! tried by the free gripper that labels the data ([`lgdm_sim::free_grasp`]) and by the arm
-//! ([`lgdm_sim::attempt::execute`]), on each isolated procedural object of one category
+//! tried by the free gripper that labels the data ([`lgdm_sim::grasping::free_grasp`]) and by the arm
+//! ([`lgdm_sim::grasping::attempt::execute`]), on each isolated procedural object of one category
 //! (generator seed 0, five instances, two placements each): the analytic source's best grasp
 //! turned in steps of 0.5 rad, at its own opening and at 7.5 and 8.5 cm. One line per pair of
 //! trials, then how many agree.
@@ -15,17 +15,17 @@
 
 use std::error::Error;
 
-use lgdm_sim::attempt::{Cell, execute, plan_grasp, plan_grasp_for};
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::free_grasp::{FreeGrasp, try_grasp};
-use lgdm_sim::job::ObjectSource;
+use lgdm_sim::grasping::attempt::{Cell, execute, plan_grasp, plan_grasp_for};
+use lgdm_sim::grasping::free_grasp::{FreeGrasp, try_grasp};
+use lgdm_sim::grasping::source::AnalyticSource;
 use lgdm_sim::perception::{ObjectView, Perception};
-use lgdm_sim::runner::ranked_grasps;
-use lgdm_sim::scenario::{Scenario, set_table};
-use lgdm_sim::shapes::LibraryShapes;
-use lgdm_sim::source::AnalyticSource;
+use lgdm_sim::physics::shapes::LibraryShapes;
+use lgdm_sim::physics::world::{ObjectHandle, World};
+use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::job::ObjectSource;
+use lgdm_sim::run::runner::ranked_grasps;
+use lgdm_sim::tasks::scenario::{Scenario, set_table};
 use lgdm_sim::timing::WallTimes;
-use lgdm_sim::world::{ObjectHandle, World};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -52,9 +52,9 @@
 //! (`world_from_tool` maps tool coordinates into the world). The world is Z up.
 //!
 //! ```
-//! use lgdm_sim::arm::ArmModel;
-//! use lgdm_sim::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
-//! use lgdm_sim::trajectory::JointTrajectory;
+//! use lgdm_sim::robot::arm::ArmModel;
+//! use lgdm_sim::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
+//! use lgdm_sim::robot::trajectory::JointTrajectory;
 //! let arm = ArmModel::ur5e();
 //! let mut ik = IkSolver::new(arm.clone(), IkConfig::default()).unwrap();
 //! let grasp = TopDownGrasp::new([0.5, -0.1, 0.2], 0.4);
@@ -67,8 +67,8 @@
 //!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
-//! use lgdm_sim::gripper::{Gripper, GripperConfig, GripperModel, top_down_palm_pose};
-//! use lgdm_sim::world::{World, WorldConfig};
+//! use lgdm_sim::robot::gripper::{Gripper, GripperConfig, GripperModel, top_down_palm_pose};
+//! use lgdm_sim::physics::world::{World, WorldConfig};
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top_z = world.config().table.top_z_m();
 //! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
@@ -89,42 +89,19 @@
 
 #![warn(missing_docs)]
 
-pub mod arm;
-pub mod arrival;
-pub mod attempt;
-pub mod camera;
-pub mod captions;
-pub mod config;
-pub mod free_grasp;
-pub mod grasp_data;
-pub mod gripper;
-pub mod hull;
-pub mod ik;
-pub mod job;
-pub mod model;
-pub mod object_sets;
-pub mod observe;
-pub mod packing;
+pub mod datagen;
+pub mod grasping;
 pub mod perception;
-pub mod plots;
-pub mod recognize;
-pub mod record;
-pub mod report;
-pub mod results;
+pub mod physics;
+pub mod recognition;
 pub mod robot;
-pub mod run_dir;
-pub mod runner;
-pub mod scenario;
-pub mod shapes;
-pub mod source;
-pub mod spec;
+pub mod run;
+pub mod tasks;
 pub mod timing;
-pub mod trajectory;
-pub mod world;
 
-pub use arm::{ArmModel, ArmPose, Joints};
-pub use gripper::{GripReading, Gripper, GripperConfig, PalmPath};
-pub use ik::{IkConfig, IkError, IkSolution, IkSolver, IkTarget, TopDownGrasp};
+pub use physics::world::{ObjectHandle, World, WorldConfig, WorldError};
+pub use robot::arm::{ArmModel, ArmPose, Joints};
+pub use robot::gripper::{GripReading, Gripper, GripperConfig, PalmPath};
+pub use robot::ik::{IkConfig, IkError, IkSolution, IkSolver, IkTarget, TopDownGrasp};
+pub use robot::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
 pub use robot::{FollowOptions, FollowReport, Robot, RobotConfig, RobotError};
-pub use trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
-pub use world::{ObjectHandle, World, WorldConfig, WorldError};

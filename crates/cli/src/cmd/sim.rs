@@ -1,5 +1,5 @@
 //! `lgdm sim`: the tabletop robot. Parses the options into a job of the library
-//! ([`lgdm_sim::job`]: `sim grasp` → [`GraspJob`], `sim pick-place` and `sim packing` →
+//! ([`lgdm_sim::run::job`]: `sim grasp` → [`GraspJob`], `sim pick-place` and `sim packing` →
 //! [`PickPlaceJob`]), loads the grasp source and the view encoder it names (the autoencoder's
 //! from `lgdm_pybridge::ae::robot` in a build with the `ae` feature), runs it with a progress
 //! bar and prints its summary.
@@ -21,18 +21,18 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::config::{ConfigOverrides, SimConfig};
-use lgdm_sim::job::{
+use lgdm_sim::grasping::source::GraspSource;
+use lgdm_sim::recognition::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
+use lgdm_sim::run::config::{ConfigOverrides, SimConfig};
+use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
     PickPlaceSetup,
 };
-use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
-use lgdm_sim::record::RecordConfig;
-use lgdm_sim::report::summary_text;
-use lgdm_sim::results::RunResults;
-use lgdm_sim::run_dir::ROUNDS_DIR;
-use lgdm_sim::source::GraspSource;
-use lgdm_sim::spec::{SimError, StopToken, builtin_source};
+use lgdm_sim::run::record::RecordConfig;
+use lgdm_sim::run::report::summary_text;
+use lgdm_sim::run::results::RunResults;
+use lgdm_sim::run::run_dir::ROUNDS_DIR;
+use lgdm_sim::run::spec::{SimError, StopToken, builtin_source};
 
 use crate::data::Encoder;
 use crate::output::outln;

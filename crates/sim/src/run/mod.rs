@@ -1,0 +1,13 @@
+//! A run of the robot: its config and spec, the rounds, their results and the run directory.
+
+pub mod captions;
+pub mod config;
+pub mod job;
+pub mod observe;
+pub mod plots;
+pub mod record;
+pub mod report;
+pub mod results;
+pub mod run_dir;
+pub mod runner;
+pub mod spec;
