@@ -17,15 +17,17 @@ use lgdm_pointcloud::grasp::decode::{
     DecodedGrasp, GraspDecodeParams, GraspMapsView, decode_grasps, wrap_angle,
 };
 use lgdm_pointcloud::import::MeshUnits;
+use lgdm_sim::grasping::source::builtin_source;
 use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError};
 use lgdm_sim::recognition::recognize::{EncoderError, GoodEncoder, RecognitionConfig, ViewEncoder};
 use lgdm_sim::run::config::{ConfigOverrides, OptionValue, SimConfig};
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::StopToken;
 use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
 };
 use lgdm_sim::run::record::RecordConfig;
 use lgdm_sim::run::results::RunResults;
-use lgdm_sim::run::spec::{SimError, StopToken, builtin_source};
 use lgdm_sim::tasks::scenario::Scenario;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -478,7 +480,7 @@ fn play(
         let result = match &mut source {
             Source::Builtin(name) => match builtin_source(name, seed) {
                 Ok(mut s) => play(s.as_mut(), &mut report),
-                Err(e) => Err(e),
+                Err(e) => Err(e.into()),
             },
             Source::Callable(c) => play(c, &mut report),
         };

@@ -11,11 +11,12 @@ use std::collections::BTreeMap;
 
 use foxglove::messages::{CameraCalibration, FrameTransforms, Log, RawImage, SceneUpdate};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library};
+use lgdm_sim::grasping::source::builtin_source;
 use lgdm_sim::run::record::RoundRecorder;
 use lgdm_sim::run::record::{RecordConfig, RoundRecording};
 use lgdm_sim::run::results::RunResults;
 use lgdm_sim::run::runner::run_trials;
-use lgdm_sim::run::spec::{RunSpec, builtin_source};
+use lgdm_sim::run::spec::RunSpec;
 use lgdm_sim::tasks::scenario::Scenario;
 use prost::Message as _;
 
@@ -40,7 +41,7 @@ fn run_recorded(
     source: &mut dyn lgdm_sim::grasping::source::GraspSource,
     config: &RecordConfig,
     sink: &mut Vec<RoundRecording>,
-) -> Result<RunResults, lgdm_sim::run::spec::SimError> {
+) -> Result<RunResults, lgdm_sim::run::error::SimError> {
     let mut recorder = RoundRecorder::new(config, sink, spec.config.cameras.clone())?;
     run_trials(spec, library, source, &mut recorder, |_| {})
 }

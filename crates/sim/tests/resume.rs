@@ -6,13 +6,13 @@
 
 use std::path::{Path, PathBuf};
 
+use lgdm_sim::grasping::source::builtin_source;
 use lgdm_sim::recognition::recognize::GoodEncoder;
 use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
 };
 use lgdm_sim::run::record::RecordConfig;
 use lgdm_sim::run::run_dir::{PROGRESS_DIR, PROGRESS_FILE};
-use lgdm_sim::run::spec::builtin_source;
 use lgdm_sim::tasks::scenario::Scenario;
 
 /// `value` without the wall-clock fields (every key named `wall`).

@@ -7,8 +7,9 @@
 use lgdm_sim::physics::shapes::ObjectShape;
 use lgdm_sim::recognition::recognize::{RecognitionConfig, RecognitionError};
 use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::{GraspJob, GraspSetup, ObjectSource, PickPlaceJob, PickPlaceSetup};
-use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS, SimError};
+use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS};
 use lgdm_sim::tasks::scenario::Scenario;
 use proptest::prelude::*;
 

@@ -9,10 +9,11 @@ use lgdm_pointcloud::cache::GOOD_DIM;
 use lgdm_sim::grasping::source::AnalyticSource;
 use lgdm_sim::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelError};
 use lgdm_sim::recognition::recognize::GoodEncoder;
+use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::{
     GraspJob, GraspSetup, MAX_INSTANCES, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
 };
-use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS, SimError};
+use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS};
 
 /// The setting a refusal names (`SimError::Setting`), else the error's text.
 fn refused<T: std::fmt::Debug>(r: Result<T, SimError>) -> String {

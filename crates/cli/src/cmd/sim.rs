@@ -22,8 +22,11 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::grasping::source::GraspSource;
+use lgdm_sim::grasping::source::builtin_source;
 use lgdm_sim::recognition::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
 use lgdm_sim::run::config::{ConfigOverrides, SimConfig};
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::StopToken;
 use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
     PickPlaceSetup,
@@ -32,7 +35,6 @@ use lgdm_sim::run::record::RecordConfig;
 use lgdm_sim::run::report::summary_text;
 use lgdm_sim::run::results::RunResults;
 use lgdm_sim::run::run_dir::ROUNDS_DIR;
-use lgdm_sim::run::spec::{SimError, StopToken, builtin_source};
 
 use crate::data::Encoder;
 use crate::output::outln;

@@ -48,9 +48,10 @@ use crate::perception::{ObjectView, Perception, PerceptionError};
 use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::World;
 use crate::run::config::SimConfig;
+use crate::run::error::SimError;
 use crate::run::job::{ObjectLibrary, ObjectSource};
 use crate::run::runner::ranked_grasps;
-use crate::run::spec::{RunSpec, SimError};
+use crate::run::spec::RunSpec;
 use crate::tasks::scenario::{Scenario, round_objects, set_table};
 
 /// Seed tags of a grasp-data set: a scene's table, a view's randomisation, a view's random

@@ -43,6 +43,7 @@
 //! assert!(grasps[0].quality >= grasps[1].quality);
 //! ```
 
+use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::crop::ObjectCrop;
 use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::grasp::analytic::{AnalyticError, AnalyticParams, analytic_grasps};
@@ -363,6 +364,29 @@ impl GraspSource for RandomSource {
         // Best first; a stable sort keeps the draw order among equal qualities.
         out.sort_by(|a, b| b.quality.total_cmp(&a.quality));
         Ok(out)
+    }
+}
+
+/// Seed tag of the random grasp source.
+const TAG_RANDOM_SOURCE: u64 = 0x5133_0002;
+
+/// A grasp source name that is not built in (nor `network`, the bridge's).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown grasp source `{0}` (known: analytic, random, network)")]
+pub struct UnknownSource(pub String);
+
+/// A built-in grasp source by name: `analytic` or `random` (seeded from the run's seed).
+/// `network` is `lgdm_pybridge::ae::robot::NetworkSource` (feature `ae`).
+pub fn builtin_source(name: &str, seed: u64) -> Result<Box<dyn GraspSource>, UnknownSource> {
+    match name {
+        "analytic" => Ok(Box::new(AnalyticSource::new())),
+        "random" => Ok(Box::new(RandomSource::new(derive_seed(
+            seed,
+            TAG_RANDOM_SOURCE,
+            0,
+            0,
+        )))),
+        other => Err(UnknownSource(other.to_string())),
     }
 }
 

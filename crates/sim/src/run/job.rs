@@ -47,12 +47,13 @@ use crate::recognition::recognize::{
     Labels, RecognitionConfig, RecognitionError, Recognizer, ViewEncoder,
 };
 use crate::run::config::SimConfig;
+use crate::run::error::SimError;
 use crate::run::observe::RunObserver;
 use crate::run::record::{RecordConfig, RoundRecorder};
 use crate::run::results::RunResults;
 use crate::run::run_dir::{Checkpoint, SimRunDir};
 use crate::run::runner::{RunState, play, prepare_shapes};
-use crate::run::spec::{RunSpec, SimError, StopToken};
+use crate::run::spec::RunSpec;
 use crate::tasks::arrival::Arrival;
 use crate::tasks::packing::PackingSpec;
 use crate::tasks::scenario::{Scenario, interleaved_order};
@@ -924,5 +925,29 @@ fn observed<T>(
             play(&mut recorder)
         }
         _ => play(&mut ()),
+    }
+}
+
+/// Asks a running job to stop: it finishes the round it is playing, writes that round's
+/// checkpoint and returns [`SimError::Stopped`] — nothing half-written, and `resume` plays the
+/// rest. Clones share the request (a signal handler or another thread holds one).
+#[derive(Debug, Clone, Default)]
+pub struct StopToken(std::sync::Arc<std::sync::atomic::AtomicBool>);
+
+impl StopToken {
+    /// Asks the job to stop after its current round.
+    pub fn stop(&self) {
+        self.0.store(true, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Whether a stop was asked for.
+    pub fn is_stopped(&self) -> bool {
+        self.0.load(std::sync::atomic::Ordering::SeqCst)
+    }
+
+    /// The shared flag, for a signal handler that sets it (`signal_hook::flag::register`):
+    /// setting it is [`StopToken::stop`].
+    pub fn flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+        std::sync::Arc::clone(&self.0)
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod captions;
 pub mod config;
+pub mod error;
 pub mod job;
 pub mod observe;
 pub mod plots;

@@ -8,8 +8,8 @@ use std::path::Path;
 use lgdm_base::plot::{Bar, Line, bar_chart, line_chart};
 
 use crate::recognition::recognize::MemoryPoint;
+use crate::run::error::SimError;
 use crate::run::results::{Rate, RunResults};
-use crate::run::spec::SimError;
 use crate::tasks::packing::basket_name;
 
 /// Every run's plots: grasp success per category and the failure reasons.

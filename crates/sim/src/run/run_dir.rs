@@ -24,11 +24,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelRecord};
 use crate::recognition::recognize::{Labels, Recognizer};
+use crate::run::error::SimError;
 use crate::run::record::{RecordError, RoundRecording, RoundSink};
 use crate::run::report::summary_text;
 use crate::run::results::{RESULTS_FILE, RunResults};
 use crate::run::runner::RunState;
-use crate::run::spec::SimError;
 
 /// The run's summary as text (the binary prints the same).
 pub const SUMMARY_FILE: &str = "summary.txt";

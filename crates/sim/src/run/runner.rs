@@ -56,16 +56,20 @@ use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, Worl
 use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::{ObjectHandle, World};
 use crate::recognition::recognize::{MemoryPoint, RecognitionRecord, Recognizer, RecognizerState};
+use crate::run::error::SimError;
 use crate::run::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
 use crate::run::results::{
     AttemptRecord, GraspRecord, PoseRecord, Proposals, RESULTS_FORMAT_VERSION, RecognitionRun,
     RoundEnd, RoundRecord, RunInfo, RunResults, RunWall, summarize,
 };
-use crate::run::spec::{RunSpec, SimError, TAG_ROUND};
+use crate::run::spec::RunSpec;
 use crate::tasks::arrival::{ArrivalRun, Evaluation};
 use crate::tasks::packing::BasketChoice;
 use crate::tasks::scenario::{PlacedObject, Scenario, on_table, round_objects_among, set_table};
 use crate::timing::{WallTimes, Work};
+
+/// Seed tag of a round's RNG.
+const TAG_ROUND: u64 = 0x5133_0001;
 
 /// Plays `spec.rounds` rounds of `spec.scenario` on `library` with `source`, telling `observer`
 /// what happens and calling `on_progress` after every attempt and round. Checks the spec

@@ -1,12 +1,13 @@
 //! What a run is: [`RunSpec`] (scenario, rounds, seed, attempt budget, packing, categories
 //! arriving over time) with every constant in [`SimConfig`], checked once by
-//! [`RunSpec::validate`] before anything is played or written; [`SimError`], every error of a
-//! run; and the built-in grasp sources by name ([`builtin_source`]).
+//! [`RunSpec::validate`] before anything is played or written, with the run's errors
+//! ([`SimError`]).
 //!
 //! ```
 //! use lgdm_pointcloud::objects::{CATEGORIES, procedural_library};
 //! use lgdm_sim::tasks::scenario::Scenario;
-//! use lgdm_sim::run::spec::{RunSpec, SimError};
+//! use lgdm_sim::run::error::SimError;
+//! use lgdm_sim::run::spec::RunSpec;
 //! let library = procedural_library(&CATEGORIES[..2], 1, 0).unwrap();
 //! let mut spec = RunSpec::new(Scenario::Isolated, 3, 0);
 //! spec.validate(&library, None).unwrap();
@@ -14,29 +15,16 @@
 //! assert!(matches!(spec.validate(&library, None), Err(SimError::Setting { name: "rounds", .. })));
 //! ```
 
-use std::path::PathBuf;
-
-use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::objects::ObjectModel;
 use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::AttemptError;
-use crate::grasping::source::{AnalyticSource, GraspSource, RandomSource, SourceError};
-use crate::perception::PerceptionError;
-use crate::physics::world::WorldError;
-use crate::recognition::model::ModelError;
-use crate::recognition::recognize::{Labels, RecognitionError};
+use crate::recognition::recognize::Labels;
 use crate::run::config::SimConfig;
-use crate::run::observe::ObserverError;
-use crate::run::record::RecordError;
+use crate::run::error::SimError;
 use crate::tasks::arrival::{Arrival, ArrivalError};
 use crate::tasks::packing::{PackingError, PackingSpec};
 use crate::tasks::scenario::{Scenario, check_library};
-
-/// Seed tag of a round's RNG.
-pub(crate) const TAG_ROUND: u64 = 0x5133_0001;
-/// Seed tag of the random grasp source.
-const TAG_RANDOM_SOURCE: u64 = 0x5133_0002;
 
 /// Checks every part of the config (here, with the run's errors, rather than in
 /// [`crate::run::config`], which [`crate::run::results`] reads without them).
@@ -158,114 +146,5 @@ impl RunSpec {
             arrival.validate(self.rounds)?;
         }
         Ok(())
-    }
-}
-
-/// Errors of a run.
-#[derive(Debug, thiserror::Error)]
-pub enum SimError {
-    /// A setting that cannot be used (named as the binary's option, without the dashes).
-    #[error("{name} {value}: {reason}")]
-    Setting {
-        /// The setting (`rounds`, `attempts`, `objects`, `scenario`, `targets`, …).
-        name: &'static str,
-        /// Its value.
-        value: String,
-        /// What is wrong.
-        reason: String,
-    },
-    /// The objects cannot be built or imported.
-    #[error("the object library: {0}")]
-    Objects(String),
-    /// The object library is empty.
-    #[error("the object library is empty")]
-    EmptyLibrary,
-    /// An unknown grasp source name.
-    #[error("unknown grasp source `{0}` (known: analytic, random, network)")]
-    UnknownSource(String),
-    /// A world error (a config field, an object whose hull cannot be built, an object larger
-    /// than the table, a NaN state).
-    #[error(transparent)]
-    World(#[from] WorldError),
-    /// Perception failed (a config field, a frame without a table).
-    #[error(transparent)]
-    Perception(#[from] PerceptionError),
-    /// An attempt failed to run (not a failed grasp: an error).
-    #[error(transparent)]
-    Attempt(#[from] AttemptError),
-    /// The grasp source failed.
-    #[error("grasp source")]
-    Source(#[from] SourceError),
-    /// Recording a round failed.
-    #[error(transparent)]
-    Record(#[from] RecordError),
-    /// Recognition or learning failed.
-    #[error("recognition")]
-    Recognition(#[from] RecognitionError),
-    /// A bad packing spec (an unknown target category, a missing basket).
-    #[error("packing")]
-    Packing(#[from] PackingError),
-    /// A bad arrival plan.
-    #[error("categories arriving over time")]
-    Arrival(#[from] ArrivalError),
-    /// The model to start from cannot be used (its file, its record, its encoder).
-    #[error(transparent)]
-    Model(#[from] ModelError),
-    /// An observer of the run failed (recording: a [`crate::run::record::RecordError`]).
-    #[error(transparent)]
-    Observer(ObserverError),
-    /// The run was asked to stop ([`StopToken`]); its run directory holds the rounds it
-    /// finished, and `resume` plays the rest.
-    #[error("stopped after {rounds_done} finished round(s)")]
-    Stopped {
-        /// Rounds finished and checkpointed.
-        rounds_done: usize,
-    },
-    /// The run directory cannot be used or written.
-    #[error("run directory {}: {reason}", path.display())]
-    RunDir {
-        /// The path.
-        path: PathBuf,
-        /// What is wrong.
-        reason: String,
-    },
-}
-
-/// A built-in grasp source by name: `analytic` or `random` (seeded from the run's seed).
-/// `network` is `lgdm_pybridge::ae::robot::NetworkSource` (feature `ae`).
-pub fn builtin_source(name: &str, seed: u64) -> Result<Box<dyn GraspSource>, SimError> {
-    match name {
-        "analytic" => Ok(Box::new(AnalyticSource::new())),
-        "random" => Ok(Box::new(RandomSource::new(derive_seed(
-            seed,
-            TAG_RANDOM_SOURCE,
-            0,
-            0,
-        )))),
-        other => Err(SimError::UnknownSource(other.to_string())),
-    }
-}
-
-/// Asks a running job to stop: it finishes the round it is playing, writes that round's
-/// checkpoint and returns [`SimError::Stopped`] — nothing half-written, and `resume` plays the
-/// rest. Clones share the request (a signal handler or another thread holds one).
-#[derive(Debug, Clone, Default)]
-pub struct StopToken(std::sync::Arc<std::sync::atomic::AtomicBool>);
-
-impl StopToken {
-    /// Asks the job to stop after its current round.
-    pub fn stop(&self) {
-        self.0.store(true, std::sync::atomic::Ordering::SeqCst);
-    }
-
-    /// Whether a stop was asked for.
-    pub fn is_stopped(&self) -> bool {
-        self.0.load(std::sync::atomic::Ordering::SeqCst)
-    }
-
-    /// The shared flag, for a signal handler that sets it (`signal_hook::flag::register`):
-    /// setting it is [`StopToken::stop`].
-    pub fn flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
-        std::sync::Arc::clone(&self.0)
     }
 }
