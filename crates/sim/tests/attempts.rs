@@ -14,10 +14,11 @@ use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
 use lgdm_sim::grasping::attempt::{
-    AttemptConfig, Cell, FailureReason, GraspPlan, ProposalCheck, execute, park, plan_grasp,
+    AttemptConfig, Cell, FailureReason, GraspPlan, execute, park, plan_grasp,
 };
-use lgdm_sim::grasping::source::builtin_source;
-use lgdm_sim::grasping::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
+use lgdm_sim::grasping::source::{
+    AnalyticSource, FixedSource, GraspQuery, GraspSource, ProposalCheck, builtin_source,
+};
 use lgdm_sim::perception::{ObjectView, Perception, WorldGrasp};
 use lgdm_sim::physics::world::{World, WorldConfig};
 use lgdm_sim::robot::RobotConfig;

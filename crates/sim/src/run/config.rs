@@ -13,7 +13,8 @@ use std::path::Path;
 use lgdm_pointcloud::grasp::GraspSpec;
 use serde::{Deserialize, Serialize};
 
-use crate::grasping::attempt::{AttemptConfig, ProposalCheck};
+use crate::grasping::attempt::AttemptConfig;
+use crate::grasping::source::ProposalCheck;
 use crate::perception::camera::{CameraConfig, ObjectDrawing};
 use crate::physics::shapes::{ObjectShape, ShapeConfig};
 use crate::physics::world::WorldConfig;

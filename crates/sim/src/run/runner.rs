@@ -49,9 +49,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::{
-    AttemptConfig, Cell, Execution, FailureReason, ProposalCheck, execute, park, plan_grasp,
+    AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp,
 };
-use crate::grasping::source::{AnalyticSource, GraspQuery, GraspSource, SourceError};
+use crate::grasping::source::{
+    AnalyticSource, GraspQuery, GraspSource, ProposalCheck, SourceError,
+};
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
 use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::{ObjectHandle, World};

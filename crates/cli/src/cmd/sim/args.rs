@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
-use lgdm_sim::grasping::attempt::ProposalCheck;
+use lgdm_sim::grasping::source::ProposalCheck;
 use lgdm_sim::perception::camera::ObjectDrawing;
 use lgdm_sim::physics::shapes::ObjectShape;
 use lgdm_sim::robot::gripper::GripperModel;
