@@ -27,6 +27,7 @@ use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
 use lgdm_sim::grasping::attempt::{AttemptConfig, Cell, execute, park, plan_grasp};
+use lgdm_sim::grasping::proposals::checked_grasps;
 use lgdm_sim::grasping::source::ProposalCheck;
 use lgdm_sim::grasping::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
 use lgdm_sim::perception::{ObjectView, Perception};
@@ -35,7 +36,6 @@ use lgdm_sim::physics::world::{World, WorldConfig};
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::run::config::SimConfig;
-use lgdm_sim::run::runner::checked_grasps;
 use lgdm_sim::timing::WallTimes;
 
 struct Scene {

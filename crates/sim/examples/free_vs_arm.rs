@@ -17,13 +17,13 @@ use std::error::Error;
 
 use lgdm_sim::grasping::attempt::{Cell, execute, plan_grasp, plan_grasp_for};
 use lgdm_sim::grasping::free_grasp::{FreeGrasp, try_grasp};
+use lgdm_sim::grasping::proposals::ranked_grasps;
 use lgdm_sim::grasping::source::AnalyticSource;
 use lgdm_sim::perception::{ObjectView, Perception};
 use lgdm_sim::physics::shapes::LibraryShapes;
 use lgdm_sim::physics::world::{ObjectHandle, World};
 use lgdm_sim::run::config::SimConfig;
 use lgdm_sim::run::job::ObjectSource;
-use lgdm_sim::run::runner::ranked_grasps;
 use lgdm_sim::tasks::scenario::{Scenario, set_table};
 use lgdm_sim::timing::WallTimes;
 use rand::SeedableRng;

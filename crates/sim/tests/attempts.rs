@@ -16,6 +16,7 @@ use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_objec
 use lgdm_sim::grasping::attempt::{
     AttemptConfig, Cell, FailureReason, GraspPlan, execute, park, plan_grasp,
 };
+use lgdm_sim::grasping::proposals::checked_grasps;
 use lgdm_sim::grasping::source::{
     AnalyticSource, FixedSource, GraspQuery, GraspSource, ProposalCheck, builtin_source,
 };
@@ -23,7 +24,7 @@ use lgdm_sim::perception::{ObjectView, Perception, WorldGrasp};
 use lgdm_sim::physics::world::{World, WorldConfig};
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::run::results::RunResults;
-use lgdm_sim::run::runner::{checked_grasps, run_trials};
+use lgdm_sim::run::runner::run_trials;
 use lgdm_sim::run::spec::RunSpec;
 use lgdm_sim::tasks::scenario::{Scenario, ScenarioConfig, on_table, set_table};
 use lgdm_sim::timing::WallTimes;

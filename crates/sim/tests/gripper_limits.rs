@@ -10,12 +10,12 @@ use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_sim::grasping::attempt::FailureReason;
 use lgdm_sim::grasping::source::builtin_source;
+use lgdm_sim::physics::measure::{narrowest_width_m, solid_fraction};
 use lgdm_sim::physics::world::{World, WorldConfig};
 use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::run::config::SimConfig;
 use lgdm_sim::run::job::{GraspJob, GraspSetup, ObjectSource};
 use lgdm_sim::run::results::RoundEnd;
-use lgdm_sim::run::runner::{narrowest_width_m, solid_fraction};
 use lgdm_sim::tasks::scenario::Scenario;
 
 /// A closed can of diameter `d` and height `h` (m).

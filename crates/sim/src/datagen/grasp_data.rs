@@ -7,7 +7,7 @@
 //! them before a grasp (the same camera, crop and collider drawing), varied where the robot's
 //! world varies ([`Randomise`]: the colours of the table and of each object, the close-up's
 //! height, depth noise). On each view the analytic and the random source propose grasps (asked
-//! as the robot asks them, [`crate::run::runner::ranked_grasps`]); each is planned as the robot
+//! as the robot asks them, [`crate::grasping::proposals::ranked_grasps`]); each is planned as the robot
 //! plans it and tried by a free gripper ([`crate::grasping::free_grasp`]), the objects put back at rest
 //! after each. Every view becomes one image in the grasp-image layout `gen-dataset` writes and
 //! `train_ae` reads (`NN/pcdNNNN{r.png,d.tiff,cpos.txt,cneg.txt}`, `index.json`): the grasps
@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::plan_grasp_for;
 use crate::grasping::free_grasp::{FreeGrasp, try_grasp};
+use crate::grasping::proposals::ranked_grasps;
 use crate::grasping::source::{AnalyticSource, GraspSource, RandomSource};
 use crate::perception::{ObjectView, Perception, PerceptionError};
 use crate::physics::shapes::LibraryShapes;
@@ -50,7 +51,6 @@ use crate::physics::world::World;
 use crate::run::config::SimConfig;
 use crate::run::error::SimError;
 use crate::run::job::{ObjectLibrary, ObjectSource};
-use crate::run::runner::ranked_grasps;
 use crate::run::spec::RunSpec;
 use crate::tasks::scenario::{Scenario, round_objects, set_table};
 

@@ -2,4 +2,5 @@
 
 pub mod attempt;
 pub mod free_grasp;
+pub mod proposals;
 pub mod source;

@@ -55,7 +55,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 /// How a grasp source's proposals are checked against the close-up's depth before they are
-/// planned ([`crate::run::runner::ranked_grasps`]); the planner's contact check
+/// planned ([`crate::grasping::proposals::ranked_grasps`]); the planner's contact check
 /// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]) follows in every case. A proposal that fails is dropped
 /// and the next one taken — never another source's grasp.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -1,5 +1,6 @@
 //! The physics world and the colliders of its objects.
 
 pub mod hull;
+pub mod measure;
 pub mod shapes;
 pub mod world;

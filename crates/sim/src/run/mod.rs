@@ -12,3 +12,4 @@ pub mod results;
 pub mod run_dir;
 pub mod runner;
 pub mod spec;
+pub mod state;

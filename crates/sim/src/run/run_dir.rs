@@ -28,7 +28,7 @@ use crate::run::error::SimError;
 use crate::run::record::{RecordError, RoundRecording, RoundSink};
 use crate::run::report::summary_text;
 use crate::run::results::{RESULTS_FILE, RunResults};
-use crate::run::runner::RunState;
+use crate::run::state::RunState;
 
 /// The run's summary as text (the binary prints the same).
 pub const SUMMARY_FILE: &str = "summary.txt";

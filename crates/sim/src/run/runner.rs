@@ -39,25 +39,24 @@ use std::time::Instant;
 use lgdm_base::Progress;
 use lgdm_base::seed::derive_seed;
 use lgdm_pointcloud::grasp::GraspSpec;
-use lgdm_pointcloud::grasp::analytic::{CheckedProposal, check_proposals_scored};
-use lgdm_pointcloud::grasp::decode::{DecodedGrasp, GraspDecodeParams};
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::math::Pose;
 use lgdm_pointcloud::objects::ObjectModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::{
     AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp,
 };
-use crate::grasping::source::{
-    AnalyticSource, GraspQuery, GraspSource, ProposalCheck, SourceError,
-};
+use crate::grasping::proposals::checked_grasps;
+use crate::grasping::source::GraspSource;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
+use crate::physics::hull::SOLID_FRACTION;
+use crate::physics::measure::{narrowest_width_m, solid_fraction};
 use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::{ObjectHandle, World};
-use crate::recognition::recognize::{MemoryPoint, RecognitionRecord, Recognizer, RecognizerState};
+use crate::recognition::recognize::{MemoryPoint, RecognitionRecord, Recognizer};
 use crate::run::error::SimError;
 use crate::run::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
 use crate::run::results::{
@@ -65,7 +64,8 @@ use crate::run::results::{
     RoundEnd, RoundRecord, RunInfo, RunResults, RunWall, summarize,
 };
 use crate::run::spec::RunSpec;
-use crate::tasks::arrival::{ArrivalRun, Evaluation};
+use crate::run::state::{Checkpoint, RunState};
+use crate::tasks::arrival::ArrivalRun;
 use crate::tasks::packing::BasketChoice;
 use crate::tasks::scenario::{PlacedObject, Scenario, on_table, round_objects_among, set_table};
 use crate::timing::{WallTimes, Work};
@@ -223,51 +223,6 @@ fn no_grasp() -> Execution {
         reason: Some(FailureReason::NoGraspFound),
         ..Execution::default()
     }
-}
-
-/// Directions (about world z) at which [`narrowest_width_m`] measures: every degree of a half
-/// turn.
-const WIDTH_DIRECTIONS: usize = 180;
-
-/// The narrowest horizontal width of a point set (m): the least, over the jaws' directions
-/// about world z, of its extent along that direction.
-fn narrowest_width(points: &[[f32; 3]]) -> Option<f32> {
-    if points.is_empty() {
-        return None;
-    }
-    (0..WIDTH_DIRECTIONS)
-        .map(|k| {
-            let a = std::f32::consts::PI * k as f32 / WIDTH_DIRECTIONS as f32;
-            let (s, c) = a.sin_cos();
-            let (lo, hi) = points.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
-                let d = p[0] * c + p[1] * s;
-                (lo.min(d), hi.max(d))
-            });
-            hi - lo
-        })
-        .reduce(f32::min)
-}
-
-/// The narrowest horizontal width of the object's collider (m): the least, over the jaws'
-/// directions about world z, of its extent along that direction — what a top-down parallel
-/// grasp around the whole object must open to.
-pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
-    let pose = world.object_pose(object).ok()?;
-    let points: Vec<[f32; 3]> = world
-        .object_hull_points_m(object)
-        .ok()?
-        .into_iter()
-        .map(|p| lgdm_pointcloud::math::transform_point(&pose, p))
-        .collect();
-    narrowest_width(&points)
-}
-
-pub use crate::physics::hull::SOLID_FRACTION;
-
-/// The share of its convex hull's volume the object's mesh encloses, when the mesh encloses a
-/// volume (a closed mesh): [`crate::physics::hull::mesh_solid_fraction`] of its mesh.
-pub fn solid_fraction(world: &World, object: ObjectHandle) -> Option<f32> {
-    crate::physics::hull::mesh_solid_fraction(world.object_mesh(object).ok()?)
 }
 
 impl<F: FnMut(Progress)> Runner<'_, F> {
@@ -915,36 +870,6 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
     }
 }
 
-/// Where a run is after its finished rounds: everything the rest of it depends on besides the
-/// recognizer's model (saved beside it). A job writes it after every round
-/// ([`crate::run::run_dir::PROGRESS_FILE`]) and resumes from it: the resumed run's results, model and
-/// recordings equal those of a run that was never stopped.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunState {
-    /// Rounds finished.
-    pub rounds_done: usize,
-    /// Their attempts.
-    pub attempts: Vec<AttemptRecord>,
-    /// Their records.
-    pub rounds: Vec<RoundRecord>,
-    /// Node counts at the start and after each round (with recognition).
-    pub memory: Vec<MemoryPoint>,
-    /// The recognizer beyond its model (with recognition).
-    pub recognizer: Option<RecognizerState>,
-    /// The grasp source's state, when it has one ([`GraspSource::state`]).
-    pub source: Option<serde_json::Value>,
-    /// Categories arriving over time: the evaluation when the late ones arrived, once made.
-    pub at_switch: Option<Evaluation>,
-    /// Simulated seconds of the finished rounds.
-    pub sim_s: f64,
-    /// Wall seconds so far (not deterministic): setting tables, replay, evaluations.
-    pub wall: RunWall,
-}
-
-/// Called after every round with the run's state and the recognizer (whose model goes with it).
-pub(crate) type Checkpoint<'a> =
-    &'a mut dyn FnMut(&RunState, Option<&Recognizer>) -> Result<(), SimError>;
-
 /// Plays the run; `shapes` from [`prepare_shapes`] (prepared here when `None`); from `resume`
 /// on (the state after its finished rounds; `source` and `recognizer` built as for the run it
 /// continues, the recognizer already restored), calling `checkpoint` after every round.
@@ -1104,179 +1029,6 @@ pub(crate) fn play(
         recognition,
         arrival_evaluation,
     })
-}
-
-/// The grippers a source is asked with, in turn, until it finds a grasp: the full stroke, then
-/// each narrower opening of `fallback_openings_m` (wider ones are skipped).
-fn stroke_then_fallbacks<'a>(
-    gripper: &'a GraspSpec,
-    fallback_openings_m: &'a [f32],
-) -> impl Iterator<Item = GraspSpec> + 'a {
-    let narrower = fallback_openings_m
-        .iter()
-        .copied()
-        .filter(|w| *w < gripper.max_opening_m);
-    std::iter::once(gripper.max_opening_m)
-        .chain(narrower)
-        .map(|max_opening_m| GraspSpec {
-            max_opening_m,
-            ..*gripper
-        })
-}
-
-/// The query of `view`'s close-up for `gripper`.
-fn query<'a>(
-    view: &'a ObjectView,
-    gripper: &'a GraspSpec,
-    decode: &'a GraspDecodeParams,
-) -> GraspQuery<'a> {
-    GraspQuery {
-        crop: &view.crop,
-        intrinsics: &view.shot.camera.intrinsics,
-        gripper,
-        decode,
-    }
-}
-
-/// `source`'s `k` best grasps on `view` for `gripper`, maps decoded with `decode` (the run's
-/// `[attempt.decode]`); when it finds none for the full stroke, it is asked again for each
-/// narrower opening of `fallback_openings_m` in turn (an attempt opens the fingers to the
-/// grasp's width plus a margin, not to the stroke). The robot's and `lgdm sim grasp-data`'s one
-/// way to ask a source.
-pub fn ranked_grasps(
-    source: &mut dyn GraspSource,
-    view: &ObjectView,
-    gripper: &GraspSpec,
-    k: usize,
-    fallback_openings_m: &[f32],
-    decode: &GraspDecodeParams,
-) -> Result<Vec<DecodedGrasp>, SourceError> {
-    let mut grasps = Vec::new();
-    for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
-        grasps = source.grasps(&query(view, &spec, decode), k)?;
-        if !grasps.is_empty() {
-            break;
-        }
-    }
-    Ok(grasps)
-}
-
-/// Proposals a source is asked for, per grasp wanted, when they are checked before planning
-/// ([`checked_grasps`]): room for the check to refuse some.
-pub const CHECK_POOL: usize = 4;
-
-/// What [`checked_grasps`] found.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct CheckedGrasps {
-    /// At most `k` grasps that passed, best first (refined ones as refined).
-    pub grasps: Vec<DecodedGrasp>,
-    /// Proposals the check looked at.
-    pub checked: usize,
-    /// Of those, refused.
-    pub refused: usize,
-}
-
-/// How many times [`CHECK_POOL`] proposals per grasp wanted the source is asked for when the
-/// check refused all of the first ones and [`crate::grasping::attempt::AttemptConfig::widen_when_refused`]
-/// is set.
-pub const WIDEN_POOL: usize = 4;
-
-/// [`ranked_grasps`] with each proposal checked against the close-up's depth as `check` says
-/// ([`ProposalCheck`]): the source is asked for `k ×` [`CHECK_POOL`] proposals, they are checked
-/// in rank order ([`check_proposals_scored`] with the analytic source's parameters) and the
-/// first `k` that pass are kept, in their order (`refine-ranked`: in the order of their
-/// analytic quality) and, with `refine-first` and `refine-ranked`, followed by the refused ones
-/// as proposed. With `widen` (the run's `widen_when_refused`), when every proposal is refused
-/// the source is asked once more for [`WIDEN_POOL`] times as many, decoded with half the
-/// quality threshold and half the peak distance, and those are checked before the refused
-/// ones are kept. When none is kept for the full stroke, the source is asked again for each of
-/// `fallback_openings_m` as [`ranked_grasps`] does. `contacts` is [`ranked_grasps`] itself
-/// (nothing checked).
-#[allow(clippy::too_many_arguments)]
-pub fn checked_grasps(
-    source: &mut dyn GraspSource,
-    view: &ObjectView,
-    gripper: &GraspSpec,
-    k: usize,
-    fallback_openings_m: &[f32],
-    decode: &GraspDecodeParams,
-    check: ProposalCheck,
-    widen: bool,
-) -> Result<CheckedGrasps, SourceError> {
-    let refine = match check {
-        ProposalCheck::Contacts => {
-            let grasps = ranked_grasps(source, view, gripper, k, fallback_openings_m, decode)?;
-            return Ok(CheckedGrasps {
-                grasps,
-                ..CheckedGrasps::default()
-            });
-        }
-        ProposalCheck::Antipodal => false,
-        ProposalCheck::Refine | ProposalCheck::RefineFirst | ProposalCheck::RefineRanked => true,
-    };
-    let keep_refused = matches!(
-        check,
-        ProposalCheck::RefineFirst | ProposalCheck::RefineRanked
-    );
-    let params = AnalyticSource::new().params;
-    let wide = GraspDecodeParams {
-        quality_threshold: decode.quality_threshold / 2.0,
-        min_distance_px: decode.min_distance_px / 2,
-        ..*decode
-    };
-    let mut out = CheckedGrasps::default();
-    for spec in stroke_then_fallbacks(gripper, fallback_openings_m) {
-        let pool = k.saturating_mul(CHECK_POOL);
-        // Checks `proposals`, counting what it looked at and refused.
-        let mut check_all = |proposals: &[DecodedGrasp]| {
-            let passed = check_proposals_scored(
-                &view.crop,
-                &view.shot.camera.intrinsics,
-                &spec,
-                &params,
-                proposals,
-                refine,
-            )?;
-            out.checked += passed.len();
-            out.refused += passed.iter().filter(|g| g.is_none()).count();
-            Ok::<_, SourceError>(passed)
-        };
-        let proposals = source.grasps(&query(view, &spec, decode), pool)?;
-        let mut passed = check_all(&proposals)?;
-        if widen && !proposals.is_empty() && passed.iter().all(Option::is_none) {
-            let more =
-                source.grasps(&query(view, &spec, &wide), pool.saturating_mul(WIDEN_POOL))?;
-            passed = check_all(&more)?.into_iter().chain(passed).collect();
-        }
-        let mut kept: Vec<(usize, CheckedProposal)> = passed
-            .iter()
-            .enumerate()
-            .filter_map(|(i, c)| c.map(|c| (i, c)))
-            .collect();
-        if check == ProposalCheck::RefineRanked {
-            // Best analytic quality first; the proposal's rank breaks ties.
-            kept.sort_by(|(i, a), (j, b)| {
-                b.analytic_quality
-                    .total_cmp(&a.analytic_quality)
-                    .then(i.cmp(j))
-            });
-        }
-        let refused = proposals
-            .iter()
-            .zip(passed.iter().skip(passed.len() - proposals.len()))
-            .filter(|(_, g)| keep_refused && g.is_none())
-            .map(|(p, _)| *p);
-        out.grasps = kept
-            .into_iter()
-            .map(|(_, c)| c.grasp)
-            .chain(refused)
-            .take(k)
-            .collect();
-        if !out.grasps.is_empty() {
-            break;
-        }
-    }
-    Ok(out)
 }
 
 /// The library indices of round `round`'s objects: drawn from the whole library, or from the

@@ -120,7 +120,7 @@ pub struct AttemptConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub proposal_check: Option<ProposalCheck>,
     /// When the check refuses every proposal for the full stroke, ask the source once more
-    /// for [`crate::run::runner::WIDEN_POOL`] times as many, decoded with half the quality
+    /// for [`crate::grasping::proposals::WIDEN_POOL`] times as many, decoded with half the quality
     /// threshold and half the peak distance, before the refused ones are tried (`refine-first`
     /// and `refine-ranked`) or a narrower opening is asked for (default: false; no effect
     /// with `contacts`).
