@@ -68,7 +68,8 @@
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
 //! use lgdm_sim::robot::gripper::{Gripper, GripperConfig, GripperModel, top_down_palm_pose};
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top_z = world.config().table.top_z_m();
 //! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
@@ -99,7 +100,10 @@ pub mod run;
 pub mod tasks;
 pub mod timing;
 
-pub use physics::world::{ObjectHandle, World, WorldConfig, WorldError};
+pub use physics::config::WorldConfig;
+pub use physics::error::WorldError;
+pub use physics::object::ObjectHandle;
+pub use physics::world::World;
 pub use robot::arm::{ArmModel, ArmPose, Joints};
 pub use robot::gripper::{GripReading, Gripper, GripperConfig, PalmPath};
 pub use robot::ik::{IkConfig, IkError, IkSolution, IkSolver, IkTarget, TopDownGrasp};

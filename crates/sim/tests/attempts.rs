@@ -21,7 +21,8 @@ use lgdm_sim::grasping::source::{
     AnalyticSource, FixedSource, GraspQuery, GraspSource, ProposalCheck, builtin_source,
 };
 use lgdm_sim::perception::{ObjectView, Perception, WorldGrasp};
-use lgdm_sim::physics::world::{World, WorldConfig};
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::RobotConfig;
 use lgdm_sim::run::results::RunResults;
 use lgdm_sim::run::runner::run_trials;

@@ -8,8 +8,9 @@
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::ObjectModel;
+use lgdm_sim::physics::config::{ObjectMaterial, WorldConfig};
 use lgdm_sim::physics::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::physics::world::{ObjectMaterial, World, WorldConfig};
+use lgdm_sim::physics::world::World;
 
 /// A sphere of `radius_m` resting on z = 0: an icosahedron whose triangles are split in four
 /// `level` times (20·4^level triangles), vertices shared.

@@ -11,7 +11,10 @@
 use lgdm_pointcloud::math::{Pose, rotation_z, transform_point, translation};
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::{CATEGORIES, procedural_object};
-use lgdm_sim::physics::world::{DropRegion, ObjectHandle, ObjectMaterial, World, WorldConfig};
+use lgdm_sim::physics::config::{ObjectMaterial, WorldConfig};
+use lgdm_sim::physics::drop::DropRegion;
+use lgdm_sim::physics::object::ObjectHandle;
+use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::gripper::{
     Gripper, GripperConfig, GripperModel, PalmPath, top_down_palm_pose,
 };

@@ -10,7 +10,8 @@
 //! use lgdm_sim::grasping::attempt::AttemptConfig;
 //! use lgdm_sim::grasping::free_grasp::{try_grasp, FreeGrasp};
 //! use lgdm_sim::robot::gripper::GripperConfig;
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top = world.config().table.top_z_m();
 //! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
@@ -32,7 +33,9 @@ use crate::grasping::attempt::{
     AttemptConfig, AttemptError, FailureReason, GraspPlan, Measurements, grasp_verdict,
     pinched_objects, touches_for_real, touching_objects, width_between_pads_m,
 };
-use crate::physics::world::{ObjectHandle, World, WorldError};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 use crate::robot::gripper::{Gripper, GripperConfig, PalmPath, top_down_palm_pose};
 
 /// Where a free gripper grasps: its tool centre at the grasp, the jaw's yaw, the opening it

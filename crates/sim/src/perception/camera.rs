@@ -27,7 +27,8 @@
 //! use lgdm_pointcloud::mesh::Mesh;
 //! use lgdm_pointcloud::math::translation;
 //! use lgdm_sim::perception::camera::CameraConfig;
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top_z = world.config().table.top_z_m();
 //! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
@@ -47,7 +48,9 @@ use lgdm_pointcloud::render::{Camera, Intrinsics, RenderItem, RgbdFrame, render}
 use lgdm_pointcloud::segment::SegmentParams;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::world::{ObjectHandle, World, WorldError};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 
 /// Label of the scenery (table, baskets) in rendered frames.
 pub const LABEL_SCENERY: u8 = 1;
@@ -399,7 +402,7 @@ pub fn render_world(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::world::WorldConfig;
+    use crate::physics::config::WorldConfig;
 
     /// The default overview camera is the reference's: 1.115 m above this world's table top,
     /// looking at the drop region's centre, 0.81 m of table across the image.

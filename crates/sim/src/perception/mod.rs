@@ -22,7 +22,8 @@
 //! use lgdm_pointcloud::objects::procedural_object;
 //! use lgdm_sim::perception::camera::CameraConfig;
 //! use lgdm_sim::perception::Perception;
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let top_z = world.config().table.top_z_m();
 //! let can = procedural_object("can", 0, 1).unwrap();
@@ -49,7 +50,8 @@ use lgdm_pointcloud::segment::{ObjectSegment, Plane, SegmentError, segment_objec
 use serde::{Deserialize, Serialize};
 
 use crate::perception::camera::{CameraConfig, CameraError, SceneFrame};
-use crate::physics::world::{ObjectHandle, World};
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 
 /// Errors of perception.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -1,7 +1,7 @@
 //! Convex hulls as the physics' colliders, with their big flat faces thinned: every hull a
 //! [`crate::physics::world::World`] builds — a single hull or each part of a decomposition
 //! ([`crate::physics::shapes`]) — has faces of more than
-//! [`crate::physics::world::WorldConfig::max_face_vertices`] vertices thinned by farthest-point sampling:
+//! [`crate::physics::config::WorldConfig::max_face_vertices`] vertices thinned by farthest-point sampling:
 //! an upright can whose base is a 32-gon otherwise rocks until it topples. Pure geometry; the
 //! world and the shapes both build on it.
 //!
@@ -83,7 +83,7 @@ pub fn mesh_solid_fraction(mesh: &Mesh) -> Option<f32> {
 /// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
 /// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
 /// have no hull. Every collider [`crate::physics::world::World`] builds goes through here (see
-/// [`crate::physics::world::WorldConfig::max_face_vertices`] for why). Dense inputs are reduced first
+/// [`crate::physics::config::WorldConfig::max_face_vertices`] for why). Dense inputs are reduced first
 /// (see the module docs).
 pub(crate) fn thinned_hull(points: &[Vector], max_face: usize) -> Option<SharedShape> {
     let mut shape = hull(points)?;
@@ -295,8 +295,8 @@ fn thin_big_faces(hull: &ConvexPolyhedron, max_face: usize) -> Option<Vec<Vector
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::config::WorldConfig;
     use crate::physics::shapes::{ShapeConfig, decompose};
-    use crate::physics::world::WorldConfig;
     use lgdm_pointcloud::objects::{CATEGORIES, procedural_library};
 
     /// The worst defects and the most distinct points over every hull [`thinned_hull`] builds

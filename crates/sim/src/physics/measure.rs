@@ -6,7 +6,8 @@
 use lgdm_pointcloud::math::transform_point;
 
 use crate::physics::hull::mesh_solid_fraction;
-use crate::physics::world::{ObjectHandle, World};
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 
 /// Directions (about world z) at which [`narrowest_width_m`] measures: every degree of a half
 /// turn.

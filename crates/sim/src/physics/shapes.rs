@@ -16,7 +16,7 @@
 //!
 //! Two details make decomposed bodies rest like single hulls: a flat **base slab** (the mesh's
 //! lowest 3 mm as one part; the other parts stop at its top), and the world's short
-//! [`crate::physics::world::WorldConfig::prediction_distance_m`] — without either a bowl made of parts
+//! [`crate::physics::config::WorldConfig::prediction_distance_m`] — without either a bowl made of parts
 //! kept wobbling on the table and in the basket. The cost: VHACD takes 0.1–0.5 s per object
 //! (computed once per library object and run, on first use) and more contacts per step.
 //!
@@ -26,7 +26,7 @@
 //! the threshold, so their decompositions are unchanged.
 //!
 //! Every convex hull a [`World`] builds — a single hull or each part — has its big flat faces
-//! thinned to [`crate::physics::world::WorldConfig::max_face_vertices`] vertices by farthest-point
+//! thinned to [`crate::physics::config::WorldConfig::max_face_vertices`] vertices by farthest-point
 //! sampling ([`crate::physics::hull`]): an upright can whose base is a 32-gon otherwise rocks until it
 //! topples.
 //!
@@ -45,8 +45,12 @@ use rapier3d::math::Vector;
 use rapier3d::parry::transformation::vhacd::{VHACD, VHACDParameters};
 use serde::{Deserialize, Serialize};
 
+use crate::physics::config::WorldConfig;
+use crate::physics::drop::DropRegion;
+use crate::physics::error::WorldError;
 use crate::physics::hull::{HULL_DIRECTIONS, SOLID_FRACTION, extreme_points, mesh_solid_fraction};
-use crate::physics::world::{DropRegion, ObjectHandle, World, WorldConfig, WorldError};
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 
 /// How an object's collider is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -356,8 +360,9 @@ impl LibraryShapes {
 
 #[cfg(test)]
 mod tests {
+    use crate::physics::config::WorldConfig;
     use crate::physics::hull::{SOLID_FRACTION, mesh_solid_fraction};
-    use crate::physics::world::{World, WorldConfig};
+    use crate::physics::world::World;
     use lgdm_pointcloud::math::translation;
     use lgdm_pointcloud::objects::procedural_object;
 

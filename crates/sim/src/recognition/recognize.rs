@@ -66,7 +66,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::perception::camera::{CameraError, LABEL_FIRST_OBJECT, ObjectDrawing, render_world};
-use crate::physics::world::{ObjectHandle, World, WorldError};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 use crate::timing::{WallTimes, Work};
 
 /// The default encoder's name: GOOD ([`GOOD_BINS`] bins, [`GOOD_DIM`] values).
@@ -810,7 +812,7 @@ fn majority(values: impl Iterator<Item = Option<u32>>) -> Option<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::world::WorldConfig;
+    use crate::physics::config::WorldConfig;
     use lgdm_pointcloud::math::translation;
     use lgdm_pointcloud::objects::procedural_library;
 

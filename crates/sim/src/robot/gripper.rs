@@ -31,7 +31,8 @@
 //!
 //! ```
 //! use lgdm_sim::robot::gripper::{Gripper, GripperConfig};
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! // Pads pointing down, 10 cm above the table top.
@@ -47,10 +48,12 @@
 //! assert!(gripper.finger_gap_m(&world) < 1e-3); // closed on nothing
 //! ```
 
-use crate::physics::world::{
-    GROUP_GRIPPER, GROUP_OBJECT, GROUP_STATIC, ObjectHandle, RPose, RVec, World, WorldError,
-    isometry_to_rapier, rapier_to_isometry,
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::{
+    GROUP_GRIPPER, GROUP_OBJECT, GROUP_STATIC, RPose, RVec, isometry_to_rapier, rapier_to_isometry,
 };
+use crate::physics::world::World;
 use nalgebra::{Isometry3, Translation3, Vector3};
 use rapier3d::prelude::{
     CoefficientCombineRule, ColliderBuilder, ColliderHandle, ImpulseJointHandle, InteractionGroups,
@@ -798,7 +801,7 @@ pub fn top_down_palm_pose(position_m: [f64; 3], yaw_rad: f64) -> Isometry3<f64> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::world::WorldConfig;
+    use crate::physics::config::WorldConfig;
 
     #[test]
     fn config_validation_names_the_field() {

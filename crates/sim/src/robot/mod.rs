@@ -25,7 +25,8 @@
 //!
 //! ```
 //! use lgdm_sim::robot::{Robot, RobotConfig, FollowOptions};
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! use lgdm_sim::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
 //! use lgdm_sim::robot::trajectory::JointTrajectory;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
@@ -45,9 +46,10 @@ pub mod gripper;
 pub mod ik;
 pub mod trajectory;
 
-use crate::physics::world::{
-    GROUP_ARM, GROUP_OBJECT, ObjectHandle, RVec, World, WorldError, isometry_to_rapier,
-};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::{GROUP_ARM, GROUP_OBJECT, RVec, isometry_to_rapier};
+use crate::physics::world::World;
 use crate::robot::arm::{ArmModel, ArmModelError, DOF, Joints, JointsError, RigidTransform};
 use crate::robot::gripper::{Gripper, GripperConfig, Touch};
 use crate::robot::trajectory::JointTrajectory;
@@ -413,7 +415,7 @@ impl Robot {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::world::WorldConfig;
+    use crate::physics::config::WorldConfig;
     use crate::robot::gripper::GripperModel;
     use crate::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
 

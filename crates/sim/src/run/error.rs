@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::grasping::attempt::AttemptError;
 use crate::grasping::source::{SourceError, UnknownSource};
 use crate::perception::PerceptionError;
-use crate::physics::world::WorldError;
+use crate::physics::error::WorldError;
 use crate::recognition::model::ModelError;
 use crate::recognition::recognize::RecognitionError;
 use crate::run::observe::ObserverError;

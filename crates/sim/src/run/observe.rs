@@ -21,7 +21,8 @@ use lgdm_pointcloud::grasp::GraspRectangle;
 
 use crate::grasping::attempt::{Cell, Execution, GraspPlan};
 use crate::perception::camera::SceneFrame;
-use crate::physics::world::{ObjectHandle, World};
+use crate::physics::object::ObjectHandle;
+use crate::physics::world::World;
 use crate::recognition::recognize::RecognitionRecord;
 use crate::robot::gripper::GripperConfig;
 use crate::run::results::{AttemptRecord, RoundRecord};

@@ -36,7 +36,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::world::{World, WorldConfig};
+use crate::physics::config::WorldConfig;
+use crate::physics::world::World;
 use crate::recognition::recognize::{Guess, RecognitionError, Recognizer};
 use crate::timing::WallTimes;
 use lgdm_base::stats::Rate;

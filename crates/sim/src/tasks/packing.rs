@@ -35,7 +35,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::FailureReason;
-use crate::physics::world::WorldConfig;
+use crate::physics::config::WorldConfig;
 use crate::recognition::recognize::{Labels, RecognitionRecord};
 use lgdm_base::stats::Rate;
 use lgdm_pointcloud::objects::ObjectModel;

@@ -32,7 +32,8 @@
 //! use lgdm_pointcloud::objects::procedural_library;
 //! use lgdm_sim::tasks::scenario::{Scenario, ScenarioConfig, set_table};
 //! use lgdm_sim::physics::shapes::LibraryShapes;
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! use rand::SeedableRng;
 //! let library = procedural_library(&["can", "book", "mug", "apple", "glass"], 1, 0).unwrap();
 //! let mut world = World::new(WorldConfig::default()).unwrap();
@@ -52,10 +53,12 @@ use rapier3d::parry::query::{distance, intersection_test};
 use rapier3d::prelude::ColliderHandle;
 use serde::{Deserialize, Serialize};
 
+use crate::physics::drop::{DropRegion, uniform_rotation};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::pose_to_rapier;
 use crate::physics::shapes::LibraryShapes;
-use crate::physics::world::{
-    DropRegion, ObjectHandle, World, WorldError, pose_to_rapier, uniform_rotation,
-};
+use crate::physics::world::World;
 
 /// How the table is set for a round.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -708,7 +711,7 @@ fn packed_pose(
 /// Checks that every library object can be simulated (its convex hull can be built, it fits on
 /// the table), naming the first that cannot.
 pub fn check_library(
-    world_config: &crate::physics::world::WorldConfig,
+    world_config: &crate::physics::config::WorldConfig,
     library: &[ObjectModel],
 ) -> Result<(), WorldError> {
     let mut world = World::new(world_config.clone())?;
@@ -735,7 +738,7 @@ pub fn on_table(world: &World, handle: ObjectHandle) -> Result<bool, WorldError>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::world::WorldConfig;
+    use crate::physics::config::WorldConfig;
     use lgdm_pointcloud::objects::procedural_library;
     use rand::SeedableRng;
 

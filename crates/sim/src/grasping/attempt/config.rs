@@ -5,7 +5,7 @@
 use lgdm_pointcloud::grasp::decode::GraspDecodeParams;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::world::WorldError;
+use crate::physics::error::WorldError;
 use crate::robot::RobotError;
 use crate::robot::ik::IkError;
 use crate::robot::trajectory::LinearMove;

@@ -5,7 +5,9 @@
 use lgdm_pointcloud::math::transform_point;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::world::{BasketConfig, ObjectHandle, WorldError};
+use crate::physics::config::BasketConfig;
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
 use crate::robot::RobotError;
 use crate::timing::{WallTimes, Work};
 

@@ -25,7 +25,7 @@
 //! than that holds the object by a physics artefact, not by friction). The paper's **contact-only** criterion — exactly
 //! one object touches the pads after the lift — is recorded beside it. **Placement success**:
 //! the object's centre of mass ends at rest inside the target basket
-//! ([`crate::physics::world::BasketConfig::inner_bounds_m`]).
+//! ([`crate::physics::config::BasketConfig::inner_bounds_m`]).
 //!
 //! Every failed attempt gets one [`FailureReason`]. Nothing is ever attached, welded or
 //! teleported while the robot acts.

@@ -6,7 +6,10 @@ use nalgebra::{Point3, Vector3};
 use rapier3d::parry::query::Ray;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::world::{ObjectHandle, RVec, World, WorldError};
+use crate::physics::error::WorldError;
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::RVec;
+use crate::physics::world::World;
 use crate::robot::gripper::{Contactee, GripReading, Gripper, GripperPart};
 
 use super::config::AttemptConfig;

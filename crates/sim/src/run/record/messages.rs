@@ -14,7 +14,9 @@ use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
 use super::storyboard::outcome_text;
 use crate::grasping::attempt::Execution;
 use crate::perception::camera::{BASKET_RGB, TABLE_RGB};
-use crate::physics::world::{ObjectHandle, World, rapier_to_isometry};
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::rapier_to_isometry;
+use crate::physics::world::World;
 use crate::run::captions::{LabelTone, ObjectLabel};
 use crate::run::observe::GraspShown;
 

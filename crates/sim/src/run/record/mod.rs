@@ -33,7 +33,8 @@
 //! use lgdm_pointcloud::mesh::Mesh;
 //! use lgdm_pointcloud::math::translation;
 //! use lgdm_sim::run::record::{RecordConfig, Recorder};
-//! use lgdm_sim::physics::world::{World, WorldConfig};
+//! use lgdm_sim::physics::config::WorldConfig;
+//! use lgdm_sim::physics::world::World;
 //! let mut world = World::new(WorldConfig::default()).unwrap();
 //! let recorder = Recorder::start(&mut world, &RecordConfig::default(), 0, Default::default()).unwrap();
 //! let cube = Mesh::cuboid([0.0, 0.0, 0.025], [0.05; 3], [200, 40, 40]);
@@ -71,7 +72,9 @@ use crate::grasping::attempt::Cell;
 use crate::grasping::attempt::Execution;
 use crate::perception::camera::{CameraConfig, render_world};
 use crate::perception::camera::{OverviewCamera, SceneFrame};
-use crate::physics::world::{ObjectHandle, StepObserver, World, rapier_to_isometry};
+use crate::physics::object::ObjectHandle;
+use crate::physics::rapier::rapier_to_isometry;
+use crate::physics::world::{StepObserver, World};
 use crate::recognition::recognize::RecognitionRecord;
 use crate::robot::Robot;
 use crate::run::captions::{
