@@ -24,8 +24,9 @@ use lgdm_sim::run::config::{ConfigOverrides, OptionValue, SimConfig};
 use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::StopToken;
 use lgdm_sim::run::job::{
-    GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
+    GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
 };
+use lgdm_sim::run::objects::ObjectSource;
 use lgdm_sim::run::record::RecordConfig;
 use lgdm_sim::run::results::RunResults;
 use lgdm_sim::tasks::scenario::Scenario;

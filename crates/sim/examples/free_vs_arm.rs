@@ -24,7 +24,7 @@ use lgdm_sim::physics::object::ObjectHandle;
 use lgdm_sim::physics::shapes::LibraryShapes;
 use lgdm_sim::physics::world::World;
 use lgdm_sim::run::config::SimConfig;
-use lgdm_sim::run::job::ObjectSource;
+use lgdm_sim::run::objects::ObjectSource;
 use lgdm_sim::tasks::scenario::{Scenario, set_table};
 use lgdm_sim::timing::WallTimes;
 use rand::SeedableRng;

@@ -15,7 +15,7 @@ use lgdm_sim::perception::{Perception, WorldGrasp};
 use lgdm_sim::physics::config::WorldConfig;
 use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::gripper::GripperConfig;
-use lgdm_sim::run::job::ObjectSource;
+use lgdm_sim::run::objects::ObjectSource;
 
 /// A box 4 cm across x, 16 cm along y (wider than the 2F-140's 14 cm stroke), 6 cm tall.
 fn narrow_box() -> (World, lgdm_sim::physics::object::ObjectHandle, [f64; 3]) {

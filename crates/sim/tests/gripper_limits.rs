@@ -15,7 +15,8 @@ use lgdm_sim::physics::measure::{narrowest_width_m, solid_fraction};
 use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
 use lgdm_sim::run::config::SimConfig;
-use lgdm_sim::run::job::{GraspJob, GraspSetup, ObjectSource};
+use lgdm_sim::run::job::{GraspJob, GraspSetup};
+use lgdm_sim::run::objects::ObjectSource;
 use lgdm_sim::run::results::RoundEnd;
 use lgdm_sim::tasks::scenario::Scenario;
 

@@ -10,9 +10,8 @@ use lgdm_sim::grasping::source::AnalyticSource;
 use lgdm_sim::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelError};
 use lgdm_sim::recognition::recognize::GoodEncoder;
 use lgdm_sim::run::error::SimError;
-use lgdm_sim::run::job::{
-    GraspJob, GraspSetup, MAX_INSTANCES, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
-};
+use lgdm_sim::run::job::{GraspJob, GraspSetup, Output, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::run::objects::{MAX_INSTANCES, ObjectSource};
 use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS};
 
 /// The setting a refusal names (`SimError::Setting`), else the error's text.

@@ -28,9 +28,9 @@ use lgdm_sim::run::config::{ConfigOverrides, SimConfig};
 use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::StopToken;
 use lgdm_sim::run::job::{
-    GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
-    PickPlaceSetup,
+    GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
 };
+use lgdm_sim::run::objects::{ObjectLibrary, ObjectSource};
 use lgdm_sim::run::record::RecordConfig;
 use lgdm_sim::run::report::summary_text;
 use lgdm_sim::run::results::RunResults;

@@ -50,7 +50,7 @@ use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::World;
 use crate::run::config::SimConfig;
 use crate::run::error::SimError;
-use crate::run::job::{ObjectLibrary, ObjectSource};
+use crate::run::objects::{ObjectLibrary, ObjectSource};
 use crate::run::spec::RunSpec;
 use crate::tasks::scenario::{Scenario, round_objects, set_table};
 

@@ -84,3 +84,12 @@ pub enum SimError {
         reason: String,
     },
 }
+
+/// A setting of a job that cannot be used.
+pub(crate) fn setting(name: &'static str, value: impl ToString, reason: impl ToString) -> SimError {
+    SimError::Setting {
+        name,
+        value: value.to_string(),
+        reason: reason.to_string(),
+    }
+}

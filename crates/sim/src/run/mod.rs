@@ -4,6 +4,7 @@ pub mod captions;
 pub mod config;
 pub mod error;
 pub mod job;
+pub mod objects;
 pub mod observe;
 pub mod plots;
 pub mod record;

@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use lgdm_sim::datagen::grasp_data::{GraspDataJob, GraspDataSetup, Randomise};
 use lgdm_sim::run::config::ConfigOverrides;
-use lgdm_sim::run::job::ObjectSource;
+use lgdm_sim::run::objects::ObjectSource;
 
 use super::{GraspDataArgs, cli_error, mesh_objects, report_meshes, resolve_config};
 use crate::output::outln;
