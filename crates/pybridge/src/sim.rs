@@ -19,7 +19,8 @@ use lgdm_pointcloud::grasp::decode::{
 use lgdm_pointcloud::import::MeshUnits;
 use lgdm_sim::grasping::source::builtin_source;
 use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError};
-use lgdm_sim::recognition::recognize::{EncoderError, GoodEncoder, RecognitionConfig, ViewEncoder};
+use lgdm_sim::recognition::config::RecognitionConfig;
+use lgdm_sim::recognition::encoder::{EncoderError, GoodEncoder, ViewEncoder};
 use lgdm_sim::run::config::{ConfigOverrides, OptionValue, SimConfig};
 use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::StopToken;

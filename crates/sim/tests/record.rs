@@ -310,7 +310,9 @@ fn first_rounds_limits_what_is_recorded() {
 /// true and guessed labels as metadata, deleted when the object goes.
 #[test]
 fn pick_place_recordings_label_every_recognised_object() {
-    use lgdm_sim::recognition::recognize::{Labels, RecognitionConfig, Recognizer};
+    use lgdm_sim::recognition::config::RecognitionConfig;
+    use lgdm_sim::recognition::labels::Labels;
+    use lgdm_sim::recognition::recognizer::Recognizer;
     let library = library();
     let spec = RunSpec::new(Scenario::Isolated, 3, 0);
     let mut source = builtin_source("analytic", 0).unwrap();

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use lgdm_sim::grasping::source::builtin_source;
-use lgdm_sim::recognition::recognize::GoodEncoder;
+use lgdm_sim::recognition::encoder::GoodEncoder;
 use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
 };

@@ -5,7 +5,8 @@
 //! by `setups.rs`.
 
 use lgdm_sim::physics::shapes::ObjectShape;
-use lgdm_sim::recognition::recognize::{RecognitionConfig, RecognitionError};
+use lgdm_sim::recognition::config::RecognitionConfig;
+use lgdm_sim::recognition::error::RecognitionError;
 use lgdm_sim::run::config::SimConfig;
 use lgdm_sim::run::error::SimError;
 use lgdm_sim::run::job::{GraspJob, GraspSetup, PickPlaceJob, PickPlaceSetup};

@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 use lgdm_gdm::Gdm;
 use serde::{Deserialize, Serialize};
 
-use crate::recognition::recognize::{Labels, RecognitionError};
+use crate::recognition::error::RecognitionError;
+use crate::recognition::labels::Labels;
 
 /// The model a pick-and-place run learnt, as a dual-memory checkpoint (`lgdm eval --model`,
 /// `lgdm.GDM.load`, `--model` of another run).

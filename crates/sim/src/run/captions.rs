@@ -20,7 +20,7 @@
 //! ```
 
 use crate::grasping::attempt::FailureReason;
-use crate::recognition::recognize::RecognitionRecord;
+use crate::recognition::recognizer::RecognitionRecord;
 use crate::run::results::{AttemptRecord, RoundRecord};
 
 /// A storyboard caption of an attempt: `attempt 2 (try 1, rank 1) mug_01: grasp failed (missed)`.

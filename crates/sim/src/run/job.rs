@@ -18,7 +18,7 @@
 //!
 //! ```no_run
 //! use lgdm_sim::run::job::{Output, PickPlaceJob, PickPlaceSetup};
-//! use lgdm_sim::recognition::recognize::GoodEncoder;
+//! use lgdm_sim::recognition::encoder::GoodEncoder;
 //! use lgdm_sim::grasping::source::AnalyticSource;
 //! let setup = PickPlaceSetup {
 //!     attempts: Some(20),
@@ -41,10 +41,12 @@ use serde::{Deserialize, Serialize};
 use crate::grasping::source::GraspSource;
 use crate::perception::camera::CameraConfig;
 use crate::physics::shapes::LibraryShapes;
+use crate::recognition::config::RecognitionConfig;
+use crate::recognition::encoder::ViewEncoder;
+use crate::recognition::error::RecognitionError;
+use crate::recognition::labels::Labels;
 use crate::recognition::model::StartModel;
-use crate::recognition::recognize::{
-    Labels, RecognitionConfig, RecognitionError, Recognizer, ViewEncoder,
-};
+use crate::recognition::recognizer::Recognizer;
 use crate::run::config::SimConfig;
 use crate::run::error::{SimError, setting};
 use crate::run::objects::{ObjectLibrary, ObjectSource};
@@ -381,7 +383,7 @@ impl Default for PickPlaceSetup {
             model: None,
             recognition: RecognitionConfig::default(),
             encoder: (
-                crate::recognition::recognize::ENCODER.to_string(),
+                crate::recognition::encoder::ENCODER.to_string(),
                 lgdm_pointcloud::cache::GOOD_DIM,
             ),
             targets: None,

@@ -23,7 +23,7 @@ use crate::grasping::attempt::{Cell, Execution, GraspPlan};
 use crate::perception::camera::SceneFrame;
 use crate::physics::object::ObjectHandle;
 use crate::physics::world::World;
-use crate::recognition::recognize::RecognitionRecord;
+use crate::recognition::recognizer::RecognitionRecord;
 use crate::robot::gripper::GripperConfig;
 use crate::run::results::{AttemptRecord, RoundRecord};
 use crate::tasks::packing::BasketChoice;

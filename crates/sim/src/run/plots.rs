@@ -7,7 +7,7 @@ use std::path::Path;
 
 use lgdm_base::plot::{Bar, Line, bar_chart, line_chart};
 
-use crate::recognition::recognize::MemoryPoint;
+use crate::recognition::recognizer::MemoryPoint;
 use crate::run::error::SimError;
 use crate::run::results::{Rate, RunResults};
 use crate::tasks::packing::basket_name;

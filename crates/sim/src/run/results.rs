@@ -26,7 +26,9 @@ use serde::{Deserialize, Serialize};
 pub use lgdm_base::stats::{Rate, wilson_interval};
 
 use crate::grasping::attempt::{FailureReason, GraspPlan, Measurements};
-use crate::recognition::recognize::{Labels, MemoryPoint, RecognitionConfig, RecognitionRecord};
+use crate::recognition::config::RecognitionConfig;
+use crate::recognition::labels::Labels;
+use crate::recognition::recognizer::{MemoryPoint, RecognitionRecord};
 use crate::run::config::SimConfig;
 use crate::tasks::arrival::{Arrival, ArrivalEvaluation};
 use crate::tasks::packing::{PackingRecord, PackingSpec, PackingSummary};
@@ -506,7 +508,7 @@ impl RunResults {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recognition::recognize::Guess;
+    use crate::recognition::recognizer::Guess;
 
     fn look(correct: bool, teacher: bool) -> RecognitionRecord {
         RecognitionRecord {

@@ -22,8 +22,9 @@ use lgdm_base::fs::{DirLock, Entry, Ownership};
 use lgdm_gdm::Gdm;
 use serde::{Deserialize, Serialize};
 
+use crate::recognition::labels::Labels;
 use crate::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelRecord};
-use crate::recognition::recognize::{Labels, Recognizer};
+use crate::recognition::recognizer::Recognizer;
 use crate::run::error::SimError;
 use crate::run::record::{RecordError, RoundRecording, RoundSink};
 use crate::run::report::summary_text;

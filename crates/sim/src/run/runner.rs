@@ -6,7 +6,7 @@
 //! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends. It returns
 //! [`RunResults`] ([`crate::run::results`]).
 //!
-//! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognize`]): before each attempt
+//! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognizer`]): before each attempt
 //! the object aimed at is recognised (once per object and round) and taught when the robot did
 //! not know it or was wrong, with replay after each round. Two policies attach to it: with
 //! [`RunSpec::packing`] each object goes to the basket of the category the robot recognises it
@@ -57,7 +57,7 @@ use crate::physics::measure::{narrowest_width_m, solid_fraction};
 use crate::physics::object::ObjectHandle;
 use crate::physics::shapes::LibraryShapes;
 use crate::physics::world::World;
-use crate::recognition::recognize::{MemoryPoint, RecognitionRecord, Recognizer};
+use crate::recognition::recognizer::{MemoryPoint, RecognitionRecord, Recognizer};
 use crate::run::error::SimError;
 use crate::run::observe::{GraspShown, RecordCamera, RoundInfo, RunObserver};
 use crate::run::results::{
@@ -131,7 +131,7 @@ pub fn run_pick_place(
 pub fn prepare_shapes(
     spec: &RunSpec,
     library: &[ObjectModel],
-    labels: Option<&crate::recognition::recognize::Labels>,
+    labels: Option<&crate::recognition::labels::Labels>,
 ) -> Result<LibraryShapes, SimError> {
     spec.validate(library, labels)?;
     let mut shapes = LibraryShapes::new(spec.config.shapes.clone(), library.len());

@@ -19,7 +19,7 @@ use lgdm_pointcloud::objects::ObjectModel;
 use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::AttemptError;
-use crate::recognition::recognize::Labels;
+use crate::recognition::labels::Labels;
 use crate::run::config::SimConfig;
 use crate::run::error::SimError;
 use crate::tasks::arrival::{Arrival, ArrivalError};

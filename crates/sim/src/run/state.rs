@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::recognition::recognize::{MemoryPoint, Recognizer, RecognizerState};
+use crate::recognition::recognizer::{MemoryPoint, Recognizer, RecognizerState};
 use crate::run::error::SimError;
 use crate::run::results::{AttemptRecord, RoundRecord, RunWall};
 use crate::tasks::arrival::Evaluation;

@@ -38,7 +38,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::physics::config::WorldConfig;
 use crate::physics::world::World;
-use crate::recognition::recognize::{Guess, RecognitionError, Recognizer};
+use crate::recognition::error::RecognitionError;
+use crate::recognition::recognizer::{Guess, Recognizer};
 use crate::timing::WallTimes;
 use lgdm_base::stats::Rate;
 
@@ -391,7 +392,8 @@ fn evaluate_here(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recognition::recognize::{Labels, RecognitionConfig};
+    use crate::recognition::config::RecognitionConfig;
+    use crate::recognition::labels::Labels;
     use lgdm_pointcloud::objects::procedural_library;
 
     #[test]

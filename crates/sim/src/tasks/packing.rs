@@ -8,8 +8,8 @@
 //! ([`crate::grasping::attempt::AttemptConfig::carry_height_m`], ≤ 1.03 m; see [`crate::robot`]).
 //!
 //! **Which basket: what the robot recognises.** The basket is chosen before the grasp from the
-//! object's recognition ([`crate::recognition::recognize`]), as the paper's robot packs by what it recognises:
-//! - the robot's first guess when it trusts it ([`crate::recognition::recognize::Guess::known`]) — a confident
+//! object's recognition ([`crate::recognition::recognizer`]), as the paper's robot packs by what it recognises:
+//! - the robot's first guess when it trusts it ([`crate::recognition::recognizer::Guess::known`]) — a confident
 //!   wrong guess sends the object to the wrong basket; the teacher's correction is learnt for the
 //!   next encounter but comes too late for this one (the robot acts on its own answer);
 //! - the teacher's label when the robot said "I don't know this" (it asked, and was told);
@@ -36,7 +36,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::grasping::attempt::FailureReason;
 use crate::physics::config::WorldConfig;
-use crate::recognition::recognize::{Labels, RecognitionRecord};
+use crate::recognition::labels::Labels;
+use crate::recognition::recognizer::RecognitionRecord;
 use lgdm_base::stats::Rate;
 use lgdm_pointcloud::objects::ObjectModel;
 
@@ -310,7 +311,7 @@ pub fn summarize(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recognition::recognize::Guess;
+    use crate::recognition::recognizer::Guess;
 
     fn recognition(guess: Option<&str>, known: bool, truth: &str) -> RecognitionRecord {
         let category_correct = known && guess == Some(truth);

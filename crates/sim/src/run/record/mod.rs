@@ -75,7 +75,7 @@ use crate::perception::camera::{OverviewCamera, SceneFrame};
 use crate::physics::object::ObjectHandle;
 use crate::physics::rapier::rapier_to_isometry;
 use crate::physics::world::{StepObserver, World};
-use crate::recognition::recognize::RecognitionRecord;
+use crate::recognition::recognizer::RecognitionRecord;
 use crate::robot::Robot;
 use crate::run::captions::{
     ObjectLabel, attempt_caption, recognition_caption, recognition_label, round_summary,

@@ -1,34 +1,8 @@
 //! Recognition in the loop: the robot looks at an object on the table, describes each view with
 //! the dataset's feature code, asks the Growing Dual-Memory ([`lgdm_gdm::Gdm`]) what it is, and
 //! is taught by a simulated teacher when it does not know or is wrong; intrinsic replay after
-//! each round.
-//!
-//! **Where the views come from.** A virtual camera on the dataset's viewing geometry
-//! ([`CameraSpec`]: 0.75 m from a point 0.1 m above the table under the object, 30° up, the
-//! Kinect-like 320×240 intrinsics) orbits the object on the table in steps of
-//! [`RecognitionConfig::view_step_rad`] (36°: the small dataset's turntable step). Orbiting a
-//! resting object is the turntable sequence of the object turned the other way, so the robot's
-//! views are the dataset's views of the same object (same distance, elevation, pixels per metre,
-//! self-occlusion), and a model trained with `lgdm train` on a generated dataset recognises the
-//! robot's objects. The grasp close-up, by contrast, looks straight down from 0.5 m: a view the
-//! datasets never contain (a top view of a can is a disc), and only one. Neighbours on the table
-//! occlude the object as they would a real camera; only the object's own pixels are used. The
-//! views draw the object's mesh ([`RecognitionConfig::draw`], what the dataset draws).
-//!
-//! **Features: the dataset's code.** Each view goes through
-//! [`lgdm_pointcloud::dataset::view_cloud`] (the object's pixels back-projected into the camera's
-//! optical frame, subsampled to 2,048 points — what `lgdm gen-dataset` stores per frame) and a
-//! [`ViewEncoder`]: [`GoodEncoder`] by default, [`lgdm_pointcloud::good::good_descriptor`] with
-//! [`GOOD_BINS`] bins (what `lgdm features` / `train` / `eval` compute per stored frame: 675
-//! values); the command line's `ae` build adds the autoencoder's (`--encoder ae`: the cloud
-//! splatted over the table as the dataset's camera sees it, the object-centred crop, 256 values —
-//! `lgdm features --encoder ae`'s pipeline). A model is only used with the encoder it was
-//! trained with (its feature dimension is checked here, its run record by the command line).
-//!
-//! **Labels.** Ids are the dataset's ([`lgdm_pointcloud::dataset::label_ids`]): category id =
-//! index of the category name in order of first appearance, instance id = index of the object.
-//! A model trained by `lgdm train` brings the names of its run (`metrics.json`); names the
-//! teacher introduces later are appended (open-ended: no class count is fixed).
+//! each round. The views come from [`crate::recognition::views`], their features from a
+//! [`ViewEncoder`], the names from [`Labels`].
 //!
 //! **The first guess and its confidence.** The [`RecognitionConfig::look_views`] views are one
 //! sequence for [`Gdm::predict`] (temporal context on). The answer is the majority over the
@@ -48,7 +22,9 @@
 //!
 //! ```
 //! use lgdm_pointcloud::objects::procedural_library;
-//! use lgdm_sim::recognition::recognize::{Labels, RecognitionConfig, Recognizer};
+//! use lgdm_sim::recognition::config::RecognitionConfig;
+//! use lgdm_sim::recognition::labels::Labels;
+//! use lgdm_sim::recognition::recognizer::Recognizer;
 //! let library = procedural_library(&["can", "book"], 1, 0).unwrap();
 //! let recognizer = Recognizer::empty(RecognitionConfig::default(), Labels::of_objects(&library), 0).unwrap();
 //! assert_eq!(recognizer.labels().categories, ["can", "book"]);
@@ -56,271 +32,23 @@
 //! ```
 
 use lgdm_base::seed::derive_seed;
-use lgdm_gdm::{Gdm, GdmConfig, GdmError, PredictOptions, Sample};
-use lgdm_pointcloud::cache::{GOOD_BINS, GOOD_DIM};
-use lgdm_pointcloud::dataset::{CameraSpec, label_ids, view_cloud};
-use lgdm_pointcloud::good::good_descriptor;
-use lgdm_pointcloud::objects::ObjectModel;
+use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::perception::camera::{CameraError, LABEL_FIRST_OBJECT, ObjectDrawing, render_world};
-use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
 use crate::physics::world::World;
 use crate::timing::{WallTimes, Work};
 
-/// The default encoder's name: GOOD ([`GOOD_BINS`] bins, [`GOOD_DIM`] values).
-pub const ENCODER: &str = "good";
-
-/// What turns the robot's views into the dual memory's input: the dataset path's encoder, so a
-/// model `lgdm train` made with it recognises the robot's objects. [`GoodEncoder`] here; the
-/// autoencoder's (`--encoder ae`) lives with the torch bridge (`lgdm_pybridge::ae::robot`, feature
-/// `ae`).
-pub trait ViewEncoder: std::fmt::Debug {
-    /// The name runs record (`lgdm train --encoder NAME`): `good`, `ae`.
-    fn name(&self) -> &str;
-    /// Values per feature.
-    fn dim(&self) -> usize;
-    /// One feature per view (a cloud in `camera`'s optical frame, as
-    /// [`lgdm_pointcloud::dataset::view_cloud`] makes it and `lgdm gen-dataset` stores it;
-    /// `camera` is the dataset's camera, [`CameraSpec::camera`]); `None` for a view it cannot
-    /// describe.
-    fn encode(
-        &mut self,
-        views: &[lgdm_pointcloud::PointCloud],
-        camera: &lgdm_pointcloud::render::Camera,
-    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError>;
-}
-
-/// The error of a [`ViewEncoder`] (the autoencoder's bridge error, or a caller's own): kept as
-/// the source of [`RecognitionError::Encoder`].
-pub type EncoderError = Box<dyn std::error::Error + Send + Sync>;
-
-/// GOOD with [`GOOD_BINS`] bins: what `lgdm features` computes per stored view.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct GoodEncoder;
-
-impl ViewEncoder for GoodEncoder {
-    fn name(&self) -> &str {
-        ENCODER
-    }
-
-    fn dim(&self) -> usize {
-        GOOD_DIM
-    }
-
-    fn encode(
-        &mut self,
-        views: &[lgdm_pointcloud::PointCloud],
-        _camera: &lgdm_pointcloud::render::Camera,
-    ) -> Result<Vec<Option<Vec<f32>>>, EncoderError> {
-        Ok(views
-            .iter()
-            .map(|cloud| good_descriptor(&cloud.points, GOOD_BINS).ok())
-            .collect())
-    }
-}
+use crate::recognition::config::RecognitionConfig;
+use crate::recognition::encoder::{GoodEncoder, ViewEncoder};
+use crate::recognition::error::RecognitionError;
+use crate::recognition::labels::Labels;
+use crate::recognition::views::orbit_features;
 
 /// Seed tag of the view subsampling stream.
-const TAG_VIEWS: u64 = 0x5133_0010;
-
-/// Recognition constants. Defaults are stated per field.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RecognitionConfig {
-    /// The views' camera (default: the dataset's, [`CameraSpec::default`]).
-    pub camera: CameraSpec,
-    /// Views with more object pixels are subsampled to this many points (default 2048, the
-    /// dataset's `max_points_per_view`).
-    pub max_points_per_view: usize,
-    /// Views of one look, the sequence the first guess comes from (default 5).
-    pub look_views: usize,
-    /// Views the robot gathers to learn an object it was taught (default 10: a full orbit).
-    pub teach_views: usize,
-    /// Azimuth step between views (rad; default 36°, the small dataset's turntable step).
-    pub view_step_rad: f32,
-    /// Views showing fewer of the object's points are skipped (default 30).
-    pub min_points: usize,
-    /// Below this share of agreeing views the robot says "I don't know this" (default 0.6).
-    pub confidence_threshold: f64,
-    /// Passes over a lesson's views (default 3).
-    pub teach_epochs: usize,
-    /// Intrinsic replay after each round (default true).
-    pub replay: bool,
-    /// Learn every object met, also the ones the robot knew (its own, right, labels; default
-    /// false: only the teacher's lessons). More learning in the loop, hence more to forget.
-    pub learn_known: bool,
-    /// What the views draw (default `mesh`, what the dataset draws).
-    pub draw: ObjectDrawing,
-}
-
-impl Default for RecognitionConfig {
-    fn default() -> Self {
-        Self {
-            camera: CameraSpec::default(),
-            max_points_per_view: 2048,
-            look_views: 5,
-            teach_views: 10,
-            view_step_rad: 36f32.to_radians(),
-            min_points: 30,
-            confidence_threshold: 0.6,
-            teach_epochs: 3,
-            replay: true,
-            learn_known: false,
-            draw: ObjectDrawing::Mesh,
-        }
-    }
-}
-
-impl RecognitionConfig {
-    /// Checks every field; the error names the first bad one.
-    pub fn validate(&self) -> Result<(), RecognitionError> {
-        let bad = |field: &'static str, reason: String| {
-            Err(RecognitionError::InvalidConfig { field, reason })
-        };
-        for (field, v) in [
-            ("max_points_per_view", self.max_points_per_view),
-            ("look_views", self.look_views),
-            ("teach_views", self.teach_views),
-            ("teach_epochs", self.teach_epochs),
-        ] {
-            if v == 0 {
-                return bad(field, "must be at least 1".into());
-            }
-        }
-        if self.look_views > 1000 || self.teach_views > 1000 || self.teach_epochs > 1000 {
-            return bad("look_views", "views and epochs must be at most 1000".into());
-        }
-        if !self.view_step_rad.is_finite() {
-            return bad("view_step_rad", "must be finite".into());
-        }
-        if !(0.0..=1.0).contains(&self.confidence_threshold) {
-            return bad(
-                "confidence_threshold",
-                format!("{} must be in [0, 1]", self.confidence_threshold),
-            );
-        }
-        let c = &self.camera;
-        if !(c.distance_m.is_finite() && c.distance_m > 0.05 && c.distance_m < 10.0) {
-            return bad(
-                "camera.distance_m",
-                format!("{} must be in (0.05, 10) m", c.distance_m),
-            );
-        }
-        if !(c.elevation_rad.is_finite() && c.target_height_m.is_finite()) {
-            return bad("camera.elevation_rad", "must be finite".into());
-        }
-        if !(8..=4096).contains(&c.width) || !(8..=4096).contains(&c.height) {
-            return bad("camera.width", "the image must be 8..=4096 px".into());
-        }
-        if !(c.focal_px.is_finite() && c.focal_px > 0.0) {
-            return bad("camera.focal_px", "must be positive".into());
-        }
-        Ok(())
-    }
-}
-
-/// Errors of recognition.
-#[derive(Debug, thiserror::Error)]
-pub enum RecognitionError {
-    /// A bad [`RecognitionConfig`] field.
-    #[error("recognition config: {field}: {reason}")]
-    InvalidConfig {
-        /// The field.
-        field: &'static str,
-        /// What is wrong.
-        reason: String,
-    },
-    /// The model does not take the encoder's features.
-    #[error(
-        "the model expects {model}-d features but the {name} encoder gives {encoder}-d: was it \
-         trained with another encoder?"
-    )]
-    Dimension {
-        /// The model's input dimension.
-        model: usize,
-        /// The encoder's name.
-        name: String,
-        /// The encoder's dimension.
-        encoder: usize,
-    },
-    /// The encoder failed on the views.
-    #[error("the {name} encoder failed")]
-    Encoder {
-        /// The encoder's name.
-        name: String,
-        /// What went wrong.
-        source: EncoderError,
-    },
-    /// The dual memory failed.
-    #[error("dual memory: {0}")]
-    Model(#[from] GdmError),
-    /// Rendering a view failed.
-    #[error(transparent)]
-    Camera(#[from] CameraError),
-    /// A world query failed.
-    #[error(transparent)]
-    World(#[from] WorldError),
-}
-
-/// Category and instance names by id (id = index): the dataset's, extended by the teacher.
-#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub struct Labels {
-    /// Category names by id.
-    pub categories: Vec<String>,
-    /// Instance names by id.
-    pub instances: Vec<String>,
-}
-
-impl Labels {
-    /// The ids a dataset of `objects` gives ([`label_ids`]).
-    pub fn of_objects(objects: &[ObjectModel]) -> Self {
-        let (categories, _) = label_ids(objects);
-        Self {
-            categories,
-            instances: objects.iter().map(|o| o.name.clone()).collect(),
-        }
-    }
-
-    fn id(names: &mut Vec<String>, name: &str) -> u32 {
-        match names.iter().position(|n| n == name) {
-            Some(i) => i as u32,
-            None => {
-                names.push(name.to_string());
-                (names.len() - 1) as u32
-            }
-        }
-    }
-
-    /// The id of category `name`, appended when new.
-    pub fn category_id(&mut self, name: &str) -> u32 {
-        Self::id(&mut self.categories, name)
-    }
-
-    /// The id of instance `name`, appended when new.
-    pub fn instance_id(&mut self, name: &str) -> u32 {
-        Self::id(&mut self.instances, name)
-    }
-
-    /// The name of category `id` (`category_<id>` when it has none).
-    pub fn category_name(&self, id: u32) -> String {
-        self.categories
-            .get(id as usize)
-            .cloned()
-            .unwrap_or_else(|| format!("category_{id}"))
-    }
-
-    /// The name of instance `id` (`instance_<id>` when it has none).
-    pub fn instance_name(&self, id: u32) -> String {
-        self.instances
-            .get(id as usize)
-            .cloned()
-            .unwrap_or_else(|| format!("instance_{id}"))
-    }
-}
-
+pub(crate) const TAG_VIEWS: u64 = 0x5133_0010;
 /// The robot's first guess about an object.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Guess {
@@ -394,7 +122,7 @@ pub struct Recognizer {
 impl Recognizer {
     /// Recognition with GOOD ([`GoodEncoder`]) and `gdm` (e.g. loaded from `lgdm train`'s
     /// checkpoint) whose ids mean `labels`; the views' subsampling is seeded from `seed`. A model
-    /// of another feature dimension than [`GOOD_DIM`] is refused.
+    /// of another feature dimension than [`GOOD_DIM`](lgdm_pointcloud::cache::GOOD_DIM) is refused.
     pub fn new(
         config: RecognitionConfig,
         gdm: Gdm,
@@ -510,7 +238,7 @@ impl Recognizer {
     }
 
     /// The encoder's features of `count` views of `object` from azimuths `k × view_step_rad`,
-    /// k = 0, 1, …; views showing fewer than `min_points` of its points are skipped.
+    /// k = 0, 1, … ([`orbit_features`]).
     pub fn views(
         &mut self,
         world: &World,
@@ -518,48 +246,15 @@ impl Recognizer {
         count: usize,
         wall: &mut WallTimes,
     ) -> Result<Vec<Vec<f32>>, RecognitionError> {
-        let pose = world.object_pose(object)?;
-        let base = [
-            pose.translation.x,
-            pose.translation.y,
-            world.config().table.top_z_m(),
-        ];
-        let mut clouds = Vec::with_capacity(count);
-        for k in 0..count {
-            let camera = self
-                .config
-                .camera
-                .camera_around(base, k as f32 * self.config.view_step_rad);
-            let shot = wall.time(Work::Render, || {
-                render_world(world, &camera, self.config.draw)
-            })?;
-            let Some(index) = shot.objects.iter().position(|&h| h == object) else {
-                continue;
-            };
-            let label = LABEL_FIRST_OBJECT + index as u8;
-            let max_points = self.config.max_points_per_view;
-            let rng = &mut self.rng;
-            let cloud = wall.time(Work::Recognition, || {
-                view_cloud(&shot.frame, &shot.camera, label, max_points, rng)
-            });
-            if cloud.len() >= self.config.min_points {
-                clouds.push(cloud);
-            }
-        }
-        if clouds.is_empty() {
-            return Ok(Vec::new());
-        }
-        // The views' clouds are in the optical frame of a camera placed around the object as the
-        // dataset's camera is around the turntable's centre: to the encoder they are views of
-        // the dataset's camera.
-        let camera = self.config.camera.camera();
-        let encoder = &mut self.encoder;
-        let features = wall.time(Work::Recognition, || encoder.encode(&clouds, &camera));
-        let features = features.map_err(|source| RecognitionError::Encoder {
-            name: self.encoder.name().to_string(),
-            source,
-        })?;
-        Ok(features.into_iter().flatten().collect())
+        orbit_features(
+            world,
+            object,
+            count,
+            &self.config,
+            self.encoder.as_mut(),
+            &mut self.rng,
+            wall,
+        )
     }
 
     /// The first guess about `object` from [`RecognitionConfig::look_views`] views.
@@ -813,9 +508,9 @@ fn majority(values: impl Iterator<Item = Option<u32>>) -> Option<u32> {
 mod tests {
     use super::*;
     use crate::physics::config::WorldConfig;
+    use crate::recognition::encoder::EncoderError;
     use lgdm_pointcloud::math::translation;
     use lgdm_pointcloud::objects::procedural_library;
-
     /// The guess-and-teach policy runs on plain features, without a world: a model taught two
     /// well-separated clusters names each from fresh samples of it.
     #[test]
@@ -875,56 +570,6 @@ mod tests {
         assert_eq!(majority([Some(1), Some(2)].into_iter()), Some(2));
         assert_eq!(majority([Some(2), Some(1)].into_iter()), Some(1));
         assert_eq!(majority([None, None].into_iter()), None);
-    }
-
-    #[test]
-    fn labels_extend_open_endedly() {
-        let library = procedural_library(&["can", "mug"], 2, 0).unwrap();
-        let mut labels = Labels::of_objects(&library);
-        assert_eq!(labels.category_id("mug"), 1);
-        assert_eq!(labels.instance_id("mug_02"), 3);
-        assert_eq!(labels.category_id("teapot"), 2);
-        assert_eq!(labels.category_name(2), "teapot");
-        assert_eq!(labels.category_name(7), "category_7");
-    }
-
-    /// The robot's views of an object standing alone on the table are the dataset's views of
-    /// it: the same camera geometry around the object gives the same cloud, hence the same
-    /// GOOD features, whatever the table point.
-    #[test]
-    fn a_view_on_the_table_is_the_dataset_view() {
-        let library = procedural_library(&["mug"], 1, 0).unwrap();
-        let mut world = World::new(WorldConfig::default()).unwrap();
-        let top = world.config().table.top_z_m();
-        let h = world
-            .spawn_object("mug_01", &library[0].mesh, &translation([0.05, -0.5, top]))
-            .unwrap();
-        let config = RecognitionConfig::default();
-        let mut recognizer =
-            Recognizer::empty(config.clone(), Labels::of_objects(&library), 0).unwrap();
-        let mut wall = WallTimes::default();
-        let views = recognizer.views(&world, h, 1, &mut wall).unwrap();
-        assert_eq!(views.len(), 1);
-        // The dataset's camera at the origin, the mesh alone at the origin.
-        let camera = config.camera.camera();
-        let frame = lgdm_pointcloud::render::render(
-            &camera,
-            &[lgdm_pointcloud::render::RenderItem {
-                mesh: &library[0].mesh,
-                world_from_object: lgdm_pointcloud::math::Pose::identity(),
-                label: 2,
-            }],
-        );
-        let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(0, TAG_VIEWS, 0, 0));
-        let cloud = view_cloud(&frame, &camera, 2, config.max_points_per_view, &mut rng);
-        let dataset = good_descriptor(&cloud.points, GOOD_BINS).unwrap();
-        let l1: f32 = views[0]
-            .iter()
-            .zip(&dataset)
-            .map(|(a, b)| (a - b).abs())
-            .sum();
-        // Only the table's occlusion of nothing and float rounding of the shifted frame differ.
-        assert!(l1 < 0.05, "L1 distance {l1}");
     }
 
     /// An empty model does not know; after a lesson it recognises the object it was taught.
