@@ -28,8 +28,7 @@ use super::{AeError, AutoEncoder, FEATURE_DIM, view_features};
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::render::{Camera, RgbdFrame};
-use lgdm_sim::grasping::source::ProposalCheck;
-use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError};
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource, ProposalCheck, SourceError};
 use lgdm_sim::recognition::encoder::{EncoderError, ViewEncoder};
 
 /// The grasp autoencoder behind [`GraspSource`] (`network`).

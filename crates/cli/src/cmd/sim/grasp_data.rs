@@ -8,7 +8,8 @@ use lgdm_sim::datagen::grasp_data::{GraspDataJob, GraspDataSetup, Randomise};
 use lgdm_sim::run::config::ConfigOverrides;
 use lgdm_sim::run::objects::ObjectSource;
 
-use super::{GraspDataArgs, cli_error, mesh_objects, report_meshes, resolve_config};
+use super::setup::{mesh_objects, report_meshes, resolve_config};
+use super::{GraspDataArgs, cli_error};
 use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 
