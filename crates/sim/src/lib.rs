@@ -1,49 +1,81 @@
 //! Tabletop simulation: a kinematic arm and a parallel-jaw gripper that recognise, grasp and place
-//! objects: the arm, the physics world, the gripper, the cameras and perception, grasp sources,
-//! one honestly judged grasp attempt, the reference scenarios and runs with their results.
+//! objects. The modules sit in folders by concept, each folder using only the ones listed before
+//! it (`tests/module_graph.rs` checks that no folder, and no file inside one, is part of a cycle):
 //!
-//! - [`arm`]: the kinematic model of a UR-class arm ([`ArmModel::ur5e`], [`ArmModel::ur5_cb3`]),
-//!   forward kinematics of every link and the tool, the geometric Jacobian.
-//! - [`ik`]: inverse kinematics as a sequence of QPs with joint limits (clarabel), for full
-//!   poses and top-down grasps; unreachable targets are typed errors.
-//! - [`trajectory`]: joint trajectories timed within the speed and acceleration limits, and
-//!   straight-line tool moves (approach, descend, lift).
-//! - [`world`]: the rapier3d physics world — the reference table (top at z = 0.785 m), two
-//!   baskets, a floor, and dynamic objects built from the pointcloud crate's meshes (their
-//!   [`shapes`]); spawn, drop at a random pose, settle, read poses back for the renderer.
-//! - [`gripper`]: a kinematic palm and two dynamic, force-limited fingers on prismatic joints;
-//!   opening commands ramp, the gap is read from body poses, contacts per finger.
-//! - [`robot`]: the arm's links as kinematic bodies posed by forward kinematics, the gripper at
-//!   the tool frame, trajectories followed in sim time with optional stop-on-contact.
-//! - [`camera`]: RGB-D frames of the world with the pointcloud crate's renderer — the
-//!   reference overview camera and a per-object close-up at the dataset's grasp-camera scale;
-//!   every constant in [`camera::CameraConfig`].
+//! - [`timing`]: where an attempt's wall time goes (render, perception, source, planning,
+//!   physics, recognition), kept apart from the deterministic records.
+//! - [`physics`]: the rapier3d world and its objects.
+//!   - [`physics::world`]: the [`World`] — the reference table (top at z = 0.785 m), two
+//!     baskets, a floor, dynamic objects built from the pointcloud crate's meshes; spawn, drop,
+//!     step, settle, read poses back for the renderer.
+//!   - [`physics::config`]: every constant of the world ([`WorldConfig`]), validated once.
+//!   - [`physics::error`]: its errors ([`WorldError`]).
+//!   - [`physics::object`]: an object's handle ([`ObjectHandle`]) and its collider drawn in the
+//!     mesh's colours.
+//!   - [`physics::drop_region`]: drop regions (uniform poses on the table).
+//!   - [`physics::shapes`] (on [`physics::hull`]): objects' colliders — a convex decomposition
+//!     that keeps openings and handles (default), or the mesh's convex hull.
+//!   - [`physics::hull`]: thinned convex hulls, the extreme points of dense meshes, how solid a
+//!     mesh is.
+//!   - [`physics::measure`]: an object's narrowest width and solidity (`wider_than_gripper`).
+//!   - `physics::rapier` (crate-private): rapier's math types at the boundary, the pose
+//!     conversions, the collision groups.
+//! - [`robot`]: the [`Robot`] — the arm's links as kinematic bodies posed by forward kinematics,
+//!   the gripper at the tool frame, trajectories followed in sim time with optional
+//!   stop-on-contact.
+//!   - [`robot::arm`]: the kinematic model of a UR-class arm ([`ArmModel::ur5e`],
+//!     [`ArmModel::ur5_cb3`]), forward kinematics of every link and the tool, the Jacobian.
+//!   - [`robot::ik`]: inverse kinematics as a sequence of QPs with joint limits (clarabel), for
+//!     full poses and top-down grasps; unreachable targets are typed errors.
+//!   - [`robot::trajectory`]: joint trajectories timed within the speed and acceleration limits,
+//!     and straight-line tool moves.
+//!   - [`robot::gripper`]: a kinematic palm and two dynamic, force-limited fingers on prismatic
+//!     joints (2F-140 and 2F-85 presets); the gap read from body poses, contacts per finger.
 //! - [`perception`]: segmentation of the overview, one object-centred crop per object, crop
 //!   grasps back to top-down grasps in the world.
-//! - [`source`]: the [`source::GraspSource`] trait and the `analytic` and `random` sources.
-//! - [`recognize`]: recognition in the loop — the object's views from the dataset's viewing
-//!   geometry, the dataset's GOOD features, the dual memory's first guess with a confidence, the
-//!   simulated teacher's lessons and replay.
-//! - [`attempt`]: one attempt (approach, guarded descent, close, lift, judge, carry, release,
-//!   judge) with strict and contact-only success and a failure reason; [`timing`] adds up
-//!   where its wall time goes.
-//! - [`scenario`]: isolated, packed, pile and scattered tables.
-//! - [`shapes`] (on [`hull`]): objects' colliders — a convex decomposition that keeps openings and handles
-//!   (default), or the mesh's convex hull.
-//! - [`config`]: every constant of a run ([`config::SimConfig`]); [`spec`]: what a run is
-//!   ([`spec::RunSpec`]), validated once; its errors.
-//! - [`runner`]: playing the rounds, calling an [`observe::RunObserver`] at each event;
-//!   [`packing`] and [`arrival`] are the policies pick-and-place can add.
-//! - [`results`]: attempt and round records, the summary (rates with Wilson intervals, per
-//!   category, per failure reason), everything `results.json` holds; [`report`] the same as
-//!   text (`summary.txt`).
-//! - [`model`]: the model a pick-and-place run starts from and leaves, with its record.
-//! - [`run_dir`]: the run directory (ownership, lock, atomic files).
-//! - [`job`]: the binary's jobs as one library call each — grasp, pick-and-place, packing —
-//!   from a setup to a written run directory.
-//! - [`record`]: optional recording of rounds for Foxglove — one MCAP per round (`/tf` of every
-//!   body, the scene, camera images, the chosen grasp, events; sim time, so same seed → same
-//!   bytes) and a PNG storyboard per round; [`captions`] says in words what happened.
+//!   - [`perception::camera`]: RGB-D frames of the world with the pointcloud crate's renderer —
+//!     the overview camera and a per-object close-up at the dataset's grasp-camera scale.
+//! - [`grasping`]: from a crop to a judged grasp.
+//!   - [`grasping::source`]: the [`grasping::source::GraspSource`] trait, the `analytic`,
+//!     `random` and fixed sources, the built-in ones by name, how proposals are checked.
+//!   - [`grasping::proposals`]: how the robot asks a source (fallback openings, the proposal
+//!     check against the close-up's depth).
+//!   - [`grasping::attempt`]: one attempt (approach, guarded descent, close, lift, judge, carry,
+//!     release, judge) with strict and contact-only success and a failure reason; its parts are
+//!     private files: `config`, `plan`, `motion` (the cell and its moves), `verdict` (contacts
+//!     and the criterion), `execute` (the phases).
+//!   - [`grasping::free_grasp`]: a grasp tried by the gripper alone, judged the same way.
+//! - [`recognition`]: recognition in the loop.
+//!   - [`recognition::recognizer`]: the dual memory's first guess with a confidence, the
+//!     simulated teacher's lessons, replay.
+//!   - [`recognition::views`]: an object's views on the dataset's viewing geometry.
+//!   - [`recognition::encoder`]: views → features ([`recognition::encoder::ViewEncoder`], GOOD).
+//!   - [`recognition::labels`]: category and instance names by id.
+//!   - [`recognition::config`], [`recognition::error`]: its constants and errors.
+//!   - [`recognition::model`]: the model a pick-and-place run starts from and leaves.
+//! - [`tasks`]: what the rounds ask of the robot.
+//!   - [`tasks::scenario`]: isolated, packed, pile and scattered tables.
+//!   - [`tasks::packing`]: each object to the basket of the category it is recognised as.
+//!   - [`tasks::arrival`]: categories arriving over time, and the end-of-run evaluation.
+//! - [`run`]: a run from its spec to its run directory.
+//!   - [`run::config`]: every constant of a run ([`run::config::SimConfig`], TOML).
+//!   - [`run::spec`]: what a run is ([`run::spec::RunSpec`]), validated once.
+//!   - [`run::error`]: every error of a run ([`run::error::SimError`]).
+//!   - [`run::objects`]: where a job's objects come from (procedural or meshes).
+//!   - [`run::runner`]: playing the rounds, calling a [`run::observe::RunObserver`] at each
+//!     event; [`run::observe`] is that seam.
+//!   - [`run::state`]: where a run is after its finished rounds (checkpoints, resume).
+//!   - [`run::results`]: attempt and round records and the summary — everything `results.json`
+//!     holds; [`run::report`] the same as text (`summary.txt`); [`run::plots`] its PNGs.
+//!   - [`run::run_dir`]: the run directory (ownership, lock, atomic files, checkpoints).
+//!   - [`run::job`]: the binary's jobs as one library call each — grasp, pick-and-place,
+//!     packing — from a setup to a written run directory.
+//!   - [`run::record`]: optional recording of rounds for Foxglove (MCAP) and PNG storyboards;
+//!     [`run::captions`] says in words what happened.
+//! - [`datagen`]: data made in the robot's world.
+//!   - [`datagen::grasp_data`]: grasp training data tried by the free gripper
+//!     (`lgdm sim grasp-data`).
+//!   - [`datagen::object_sets`]: the paper's YCB objects laid out for `--meshes`.
 //!
 //! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
 //! teleported. Physics is single-threaded and deterministic: same inputs, same bits.
@@ -63,7 +95,7 @@
 //! assert_eq!(move_there.sample(move_there.duration_s()), q);
 //! ```
 //!
-//! The physics side (see [`world`], [`gripper`] and [`robot`] for more):
+//! The physics side (see [`physics::world`], [`robot::gripper`] and [`robot`] for more):
 //!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;

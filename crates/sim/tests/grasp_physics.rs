@@ -12,7 +12,7 @@ use lgdm_pointcloud::math::{Pose, rotation_z, transform_point, translation};
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::{CATEGORIES, procedural_object};
 use lgdm_sim::physics::config::{ObjectMaterial, WorldConfig};
-use lgdm_sim::physics::drop::DropRegion;
+use lgdm_sim::physics::drop_region::DropRegion;
 use lgdm_sim::physics::object::ObjectHandle;
 use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::gripper::{

@@ -46,7 +46,7 @@ use rapier3d::parry::transformation::vhacd::{VHACD, VHACDParameters};
 use serde::{Deserialize, Serialize};
 
 use crate::physics::config::WorldConfig;
-use crate::physics::drop::DropRegion;
+use crate::physics::drop_region::DropRegion;
 use crate::physics::error::WorldError;
 use crate::physics::hull::{HULL_DIRECTIONS, SOLID_FRACTION, extreme_points, mesh_solid_fraction};
 use crate::physics::object::ObjectHandle;

@@ -24,7 +24,7 @@
 //! Here: the [`World`] (scenery, objects, stepping, settling, drops in a [`DropRegion`]). Beside
 //! it: its configuration ([`crate::physics::config`], validated by [`World::new`]), its errors
 //! ([`crate::physics::error`]), the handles and drawings of its objects
-//! ([`crate::physics::object`]), drop regions ([`crate::physics::drop`]) and the conversions at
+//! ([`crate::physics::object`]), drop regions ([`crate::physics::drop_region`]) and the conversions at
 //! the boundary to rapier's math types (`physics::rapier`). How collider shapes are built —
 //! decompositions in [`crate::physics::shapes`], the thinning of big hull faces and the
 //! reduction of dense meshes' hulls (a scan of millions of triangles) in
@@ -54,7 +54,7 @@ use rapier3d::prelude::{
 };
 
 use crate::physics::config::{FrictionKind, ObjectMaterial, WorldConfig, finite};
-use crate::physics::drop::DropRegion;
+use crate::physics::drop_region::DropRegion;
 use crate::physics::error::{HullProblem, WorldError};
 use crate::physics::hull::thinned_hull;
 use crate::physics::object::{ObjectHandle, collider_drawing};

@@ -1,4 +1,8 @@
-//! A run of the robot: its config and spec, the rounds, their results and the run directory.
+//! A run from its spec to its run directory: the constants ([`config`]), what a run is
+//! ([`spec`]) and its errors ([`error`]), the objects ([`objects`]), the rounds ([`runner`],
+//! calling a [`observe::RunObserver`] at each event) and where they stand ([`state`]), the
+//! records ([`results`], [`report`], [`plots`]), the directory ([`run_dir`]), the jobs as one
+//! call each ([`job`]) and recording ([`record`], [`captions`]). On everything but datagen.
 
 pub mod captions;
 pub mod config;

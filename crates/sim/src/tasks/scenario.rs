@@ -53,7 +53,7 @@ use rapier3d::parry::query::{distance, intersection_test};
 use rapier3d::prelude::ColliderHandle;
 use serde::{Deserialize, Serialize};
 
-use crate::physics::drop::{DropRegion, uniform_rotation};
+use crate::physics::drop_region::{DropRegion, uniform_rotation};
 use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
 use crate::physics::rapier::pose_to_rapier;
