@@ -17,15 +17,13 @@ use lgdm_pointcloud::grasp::decode::{
     DecodedGrasp, GraspDecodeParams, GraspMapsView, decode_grasps, wrap_angle,
 };
 use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::grasping::source::builtin_source;
-use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError};
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError, builtin_source};
 use lgdm_sim::recognition::config::RecognitionConfig;
 use lgdm_sim::recognition::encoder::{EncoderError, GoodEncoder, ViewEncoder};
 use lgdm_sim::run::config::{ConfigOverrides, OptionValue, SimConfig};
 use lgdm_sim::run::error::SimError;
-use lgdm_sim::run::job::StopToken;
 use lgdm_sim::run::job::{
-    GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
+    GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup, StopToken,
 };
 use lgdm_sim::run::objects::ObjectSource;
 use lgdm_sim::run::record::RecordConfig;

@@ -1,9 +1,9 @@
-//! Do the labels of `lgdm sim grasp-data` say what the arm would do? The same grasp plans,
-//! tried by the free gripper that labels the data ([`lgdm_sim::grasping::free_grasp`]) and by the arm
+//! Do the labels of `lgdm sim grasp-data` say what the arm would do? The same grasp plans, tried by
+//! the free gripper that labels the data ([`lgdm_sim::grasping::free_grasp`]) and by the arm
 //! ([`lgdm_sim::grasping::attempt::execute`]), on each isolated procedural object of one category
-//! (generator seed 0, five instances, two placements each): the analytic source's best grasp
-//! turned in steps of 0.5 rad, at its own opening and at 7.5 and 8.5 cm. One line per pair of
-//! trials, then how many agree.
+//! (generator seed 0, five instances, two placements each): the analytic source's best grasp turned
+//! in steps of 0.5 rad, at its own opening and at 7.5 and 8.5 cm. One line per pair of trials, then
+//! how many agree.
 //!
 //! ```sh
 //! cargo run --release -p lgdm-sim --example free_vs_arm -- teapot

@@ -3,18 +3,18 @@
 //! Scene `s` is a pure function of `(seed, s)`: a table (isolated with
 //! [`GraspDataSetup::isolated_share`], else packed, pile or scattered, equally likely) set as the
 //! robot's rounds set it, from the same objects; the overview camera and segmentation; up to
-//! [`GraspDataSetup::views_per_scene`] of its objects seen close up exactly as the robot sees
-//! them before a grasp (the same camera, crop and collider drawing), varied where the robot's
-//! world varies ([`Randomise`]: the colours of the table and of each object, the close-up's
-//! height, depth noise). On each view the analytic and the random source propose grasps (asked
-//! as the robot asks them, [`crate::grasping::proposals::ranked_grasps`]); each is planned as the robot
-//! plans it and tried by a free gripper ([`crate::grasping::free_grasp`]), the objects put back at rest
-//! after each. Every view becomes one image in the grasp-image layout `gen-dataset` writes and
-//! `train_ae` reads (`NN/pcdNNNN{r.png,d.tiff,cpos.txt,cneg.txt}`, `index.json`): the grasps
-//! that held are its positive rectangles, the others its negatives, and each image's index entry
-//! carries the outcome of every rectangle ([`PhysicsLabels`]). `grasp-data.json` records the
-//! setup and the counts; `grasp_preview.png` shows the first eight images with their rectangles
-//! (green: held, red: failed).
+//! [`GraspDataSetup::views_per_scene`] of its objects seen close up exactly as the robot sees them
+//! before a grasp (the same camera, crop and collider drawing), varied where the robot's world
+//! varies ([`Randomise`]: the colours of the table and of each object, the close-up's height, depth
+//! noise). On each view the analytic and the random source propose grasps (asked as the robot asks
+//! them, [`crate::grasping::proposals::ranked_grasps`]); each is planned as the robot plans it and
+//! tried by a free gripper ([`crate::grasping::free_grasp`]), the objects put back at rest after
+//! each. Every view becomes one image in the grasp-image layout `gen-dataset` writes and `train_ae`
+//! reads (`NN/pcdNNNN{r.png,d.tiff,cpos.txt,cneg.txt}`, `index.json`): the grasps that held are its
+//! positive rectangles, the others its negatives, and each image's index entry carries the outcome
+//! of every rectangle ([`PhysicsLabels`]). `grasp-data.json` records the setup and the counts;
+//! `grasp_preview.png` shows the first eight images with their rectangles (green: held, red:
+//! failed).
 //!
 //! Scenes run in parallel; they are written in order, so the set does not depend on the
 //! number of threads. Same seed, same bytes.

@@ -1,8 +1,8 @@
-//! A grasp tried with the gripper alone, as Dex-Net and VGN label their data: the palm appears
-//! open over the grasp at the plan's pre-grasp height, descends straight (guarded, as the arm's
+//! A grasp tried with the gripper alone, as Dex-Net and VGN label their data: the palm appears open
+//! over the grasp at the plan's pre-grasp height, descends straight (guarded, as the arm's
 //! descent), closes and squeezes, lifts straight up, holds, and is judged by the robot's own
-//! criterion ([`crate::grasping::attempt`]'s verdict); then it is taken out of the world. No arm, no
-//! carry: a fraction of an arm attempt's physics, and the label is whether the grasp holds.
+//! criterion ([`crate::grasping::attempt`]'s verdict); then it is taken out of the world. No arm,
+//! no carry: a fraction of an arm attempt's physics, and the label is whether the grasp holds.
 //! `lgdm sim grasp-data` ([`crate::datagen::grasp_data`]) labels its rectangles so.
 //!
 //! ```

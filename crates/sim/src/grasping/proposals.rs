@@ -82,9 +82,9 @@ pub struct CheckedGrasps {
     pub refused: usize,
 }
 
-/// How many times [`CHECK_POOL`] proposals per grasp wanted the source is asked for when the
-/// check refused all of the first ones and [`crate::grasping::attempt::AttemptConfig::widen_when_refused`]
-/// is set.
+/// How many times [`CHECK_POOL`] proposals per grasp wanted the source is asked for when the check
+/// refused all of the first ones and
+/// [`crate::grasping::attempt::AttemptConfig::widen_when_refused`] is set.
 pub const WIDEN_POOL: usize = 4;
 
 /// [`ranked_grasps`] with each proposal checked against the close-up's depth as `check` says

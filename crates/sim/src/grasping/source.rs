@@ -14,6 +14,10 @@
 //!   decoded grasps in crop pixels is `lgdm_pybridge::ae::grasps`), so this crate never needs
 //!   torch.
 //!
+//! The built-in sources by name: [`builtin_source`]. How a source's proposals are checked
+//! before the robot plans them — each source names its default — is a [`ProposalCheck`]
+//! (applied by [`crate::grasping::proposals`]).
+//!
 //! ```
 //! use lgdm_pointcloud::crop::ObjectCrop;
 //! use lgdm_pointcloud::grasp::decode::InputCrop;
@@ -53,52 +57,6 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use serde::{Deserialize, Serialize};
-
-/// How a grasp source's proposals are checked against the close-up's depth before they are
-/// planned ([`crate::grasping::proposals::ranked_grasps`]); the planner's contact check
-/// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]) follows in every case. A proposal that fails is dropped
-/// and the next one taken — never another source's grasp.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ProposalCheck {
-    /// No check before planning (the planner's contact check only).
-    #[default]
-    Contacts,
-    /// The analytic source's test at the proposal's own centre and axis
-    /// ([`lgdm_pointcloud::grasp::analytic::check_proposals`]): fingers closing from the full
-    /// opening meet material on both sides within the friction cone, both finger lanes clear,
-    /// the jaw covered, the palm clear. A proposal that passes is tried as proposed.
-    Antipodal,
-    /// As `antipodal`, and a proposal that passes is moved to its contacts' midpoint, its axis
-    /// squared to the contact walls and its opening set to the contacts' distance (the
-    /// proposal chooses where and which way; the depth, how wide).
-    Refine,
-    /// As `refine`, but the proposals the check refuses are not dropped: they follow the
-    /// refined ones, as proposed and in their order (the planner's contact check still applies).
-    /// Where the depth test finds nothing (flat or thin objects the analytic source cannot
-    /// grasp either) the proposals are tried as they are.
-    #[serde(rename = "refine-first")]
-    RefineFirst,
-    /// As `refine-first`, but the proposals that pass are tried in the order of the analytic
-    /// source's quality where they settled (safe grasps first; its stability term prefers
-    /// centres near the object's centroid), the proposal's rank breaking ties: the network
-    /// chooses where to look, the depth which of those places first.
-    #[serde(rename = "refine-ranked")]
-    RefineRanked,
-}
-
-impl ProposalCheck {
-    /// The word the option and the config spell.
-    pub fn word(self) -> &'static str {
-        match self {
-            ProposalCheck::Contacts => "contacts",
-            ProposalCheck::Antipodal => "antipodal",
-            ProposalCheck::Refine => "refine",
-            ProposalCheck::RefineFirst => "refine-first",
-            ProposalCheck::RefineRanked => "refine-ranked",
-        }
-    }
-}
 
 /// What a grasp source is asked about: one object-centred crop.
 #[derive(Debug, Clone, Copy)]
@@ -170,8 +128,8 @@ pub trait GraspSource {
         Ok(())
     }
 
-    /// How the robot checks this source's proposals against the close-up's depth when the run
-    /// does not say ([`crate::grasping::attempt::AttemptConfig::proposal_check`]): `contacts` (nothing
+    /// How the robot checks this source's proposals against the close-up's depth when the run does
+    /// not say ([`crate::grasping::attempt::AttemptConfig::proposal_check`]): `contacts` (nothing
     /// before the planner's own check) by default.
     fn proposal_check(&self) -> ProposalCheck {
         ProposalCheck::Contacts
@@ -181,6 +139,53 @@ pub trait GraspSource {
     /// the name by default.
     fn describe(&self) -> String {
         self.name().to_string()
+    }
+}
+
+/// How a grasp source's proposals are checked against the close-up's depth before they are
+/// planned ([`crate::grasping::proposals::checked_grasps`]); the planner's contact check
+/// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]) follows in every case. A proposal
+/// that fails is dropped and the next one taken — never another source's grasp. Each source
+/// names its own default ([`GraspSource::proposal_check`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProposalCheck {
+    /// No check before planning (the planner's contact check only).
+    #[default]
+    Contacts,
+    /// The analytic source's test at the proposal's own centre and axis
+    /// ([`lgdm_pointcloud::grasp::analytic::check_proposals`]): fingers closing from the full
+    /// opening meet material on both sides within the friction cone, both finger lanes clear,
+    /// the jaw covered, the palm clear. A proposal that passes is tried as proposed.
+    Antipodal,
+    /// As `antipodal`, and a proposal that passes is moved to its contacts' midpoint, its axis
+    /// squared to the contact walls and its opening set to the contacts' distance (the
+    /// proposal chooses where and which way; the depth, how wide).
+    Refine,
+    /// As `refine`, but the proposals the check refuses are not dropped: they follow the
+    /// refined ones, as proposed and in their order (the planner's contact check still applies).
+    /// Where the depth test finds nothing (flat or thin objects the analytic source cannot
+    /// grasp either) the proposals are tried as they are.
+    #[serde(rename = "refine-first")]
+    RefineFirst,
+    /// As `refine-first`, but the proposals that pass are tried in the order of the analytic
+    /// source's quality where they settled (safe grasps first; its stability term prefers
+    /// centres near the object's centroid), the proposal's rank breaking ties: the network
+    /// chooses where to look, the depth which of those places first.
+    #[serde(rename = "refine-ranked")]
+    RefineRanked,
+}
+
+impl ProposalCheck {
+    /// The word the option and the config spell.
+    pub fn word(self) -> &'static str {
+        match self {
+            ProposalCheck::Contacts => "contacts",
+            ProposalCheck::Antipodal => "antipodal",
+            ProposalCheck::Refine => "refine",
+            ProposalCheck::RefineFirst => "refine-first",
+            ProposalCheck::RefineRanked => "refine-ranked",
+        }
     }
 }
 

@@ -1,9 +1,9 @@
 //! Convex hulls as the physics' colliders, with their big flat faces thinned: every hull a
 //! [`crate::physics::world::World`] builds — a single hull or each part of a decomposition
 //! ([`crate::physics::shapes`]) — has faces of more than
-//! [`crate::physics::config::WorldConfig::max_face_vertices`] vertices thinned by farthest-point sampling:
-//! an upright can whose base is a 32-gon otherwise rocks until it topples. Pure geometry; the
-//! world and the shapes both build on it.
+//! [`crate::physics::config::WorldConfig::max_face_vertices`] vertices thinned by farthest-point
+//! sampling: an upright can whose base is a 32-gon otherwise rocks until it topples. Pure geometry;
+//! the world and the shapes both build on it.
 //!
 //! Dense meshes (scans, finely subdivided models) need one more step. parry's convex polyhedron
 //! merges adjacent hull triangles whose normals differ by less than about 1.5° (`1 − √ε` of
@@ -81,10 +81,10 @@ pub fn mesh_solid_fraction(mesh: &Mesh) -> Option<f32> {
 }
 
 /// The convex hull of `points` with faces of more than `max_face` vertices thinned (up to three
-/// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points
-/// have no hull. Every collider [`crate::physics::world::World`] builds goes through here (see
-/// [`crate::physics::config::WorldConfig::max_face_vertices`] for why). Dense inputs are reduced first
-/// (see the module docs).
+/// rounds; a round whose hull cannot be built keeps the previous one); `None` when the points have
+/// no hull. Every collider [`crate::physics::world::World`] builds goes through here (see
+/// [`crate::physics::config::WorldConfig::max_face_vertices`] for why). Dense inputs are reduced
+/// first (see the module docs).
 pub(crate) fn thinned_hull(points: &[Vector], max_face: usize) -> Option<SharedShape> {
     let mut shape = hull(points)?;
     for _ in 0..3 {

@@ -47,7 +47,8 @@ pub fn narrowest_width_m(world: &World, object: ObjectHandle) -> Option<f32> {
 }
 
 /// The share of its convex hull's volume the object's mesh encloses, when the mesh encloses a
-/// volume (a closed mesh): [`mesh_solid_fraction`] of its mesh (solid from [`crate::physics::hull::SOLID_FRACTION`] on).
+/// volume (a closed mesh): [`mesh_solid_fraction`] of its mesh (solid from
+/// [`crate::physics::hull::SOLID_FRACTION`] on).
 pub fn solid_fraction(world: &World, object: ObjectHandle) -> Option<f32> {
     mesh_solid_fraction(world.object_mesh(object).ok()?)
 }

@@ -7,7 +7,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::physics::rapier::RVec;
 
-/// A dynamic object in the [`World`](crate::physics::world::World) (an index; stays valid until the object is removed).
+/// A dynamic object in the [`World`](crate::physics::world::World) (an index; stays valid until the
+/// object is removed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct ObjectHandle(pub u32);
 

@@ -2,12 +2,12 @@
 //! parry's VHACD, one compound collider of convex parts via [`World::spawn_object_parts`]) or the
 //! mesh's single convex hull ([`ObjectShape::Hull`], [`World::spawn_object`]).
 //!
-//! Why a decomposition: a single hull fills a bowl, a glass, a mug's opening and the space
-//! inside its handle. Bowls (12–18 cm across) and teapots are then wider than the 85 mm stroke
-//! everywhere, and a rim is no longer there to pinch. With the parts the physics keeps the
-//! openings. VHACD is not exact: it keeps a bowl's rim and a mug's handle but fills a vase's
-//! narrow neck, so the cameras draw the collider ([`crate::perception::camera::ObjectDrawing::Collider`],
-//! the default), and what the camera sees is what the fingers meet.
+//! Why a decomposition: a single hull fills a bowl, a glass, a mug's opening and the space inside
+//! its handle. Bowls (12–18 cm across) and teapots are then wider than the 85 mm stroke everywhere,
+//! and a rim is no longer there to pinch. With the parts the physics keeps the openings. VHACD is
+//! not exact: it keeps a bowl's rim and a mug's handle but fills a vase's narrow neck, so the
+//! cameras draw the collider ([`crate::perception::camera::ObjectDrawing::Collider`], the default),
+//! and what the camera sees is what the fingers meet.
 //!
 //! Only open objects are decomposed: a mesh that fills at least [`SOLID_FRACTION`] of its hull
 //! (a can, a box, a fruit, a bottle) has nothing to keep open and gets one part, its hull.
@@ -16,8 +16,8 @@
 //!
 //! Two details make decomposed bodies rest like single hulls: a flat **base slab** (the mesh's
 //! lowest 3 mm as one part; the other parts stop at its top), and the world's short
-//! [`crate::physics::config::WorldConfig::prediction_distance_m`] — without either a bowl made of parts
-//! kept wobbling on the table and in the basket. The cost: VHACD takes 0.1–0.5 s per object
+//! [`crate::physics::config::WorldConfig::prediction_distance_m`] — without either a bowl made of
+//! parts kept wobbling on the table and in the basket. The cost: VHACD takes 0.1–0.5 s per object
 //! (computed once per library object and run, on first use) and more contacts per step.
 //!
 //! Dense meshes (scans; more than [`MAX_DECOMPOSITION_FACES`] triangles) are simplified by
@@ -27,8 +27,8 @@
 //!
 //! Every convex hull a [`World`] builds — a single hull or each part — has its big flat faces
 //! thinned to [`crate::physics::config::WorldConfig::max_face_vertices`] vertices by farthest-point
-//! sampling ([`crate::physics::hull`]): an upright can whose base is a 32-gon otherwise rocks until it
-//! topples.
+//! sampling ([`crate::physics::hull`]): an upright can whose base is a 32-gon otherwise rocks until
+//! it topples.
 //!
 //! ```
 //! use lgdm_pointcloud::objects::procedural_object;
@@ -58,8 +58,8 @@ use crate::physics::world::World;
 pub enum ObjectShape {
     /// The mesh's convex hull (openings and handles are filled).
     Hull,
-    /// A convex decomposition of the mesh (VHACD; default) where it is open — a mesh filling
-    /// less than [`crate::physics::hull::SOLID_FRACTION`] of its hull — and its hull where it is not:
+    /// A convex decomposition of the mesh (VHACD; default) where it is open — a mesh filling less
+    /// than [`crate::physics::hull::SOLID_FRACTION`] of its hull — and its hull where it is not:
     /// openings stay open.
     #[default]
     Decomposition,
@@ -93,9 +93,9 @@ impl Default for ShapeConfig {
 /// Meshes with more triangles than this are simplified before VHACD (default 10,000): vertex
 /// clustering ([`Mesh::clustered`]) on cells of the mesh's largest extent / [`DENSE_MESH_CELLS`],
 /// and each part (and the base slab) reduced to its extreme points along
-/// [`crate::physics::hull::HULL_DIRECTIONS`] directions. On a 2-million-triangle scan VHACD and its exact
-/// hulls took 15 s and 650 MB and gave parts of up to 150,000 points; simplified, about a second.
-/// The procedural library's meshes have at most 2,432 triangles (a vase), so their
+/// [`crate::physics::hull::HULL_DIRECTIONS`] directions. On a 2-million-triangle scan VHACD and its
+/// exact hulls took 15 s and 650 MB and gave parts of up to 150,000 points; simplified, about a
+/// second. The procedural library's meshes have at most 2,432 triangles (a vase), so their
 /// decompositions are what they were; a 10 cm sphere subdivided 5 times (20,480 triangles) is
 /// simplified.
 pub const MAX_DECOMPOSITION_FACES: usize = 10_000;

@@ -24,11 +24,10 @@
 //! Here: the [`World`] (scenery, objects, stepping, settling, drops in a [`DropRegion`]). Beside
 //! it: its configuration ([`crate::physics::config`], validated by [`World::new`]), its errors
 //! ([`crate::physics::error`]), the handles and drawings of its objects
-//! ([`crate::physics::object`]), drop regions ([`crate::physics::drop_region`]) and the conversions at
-//! the boundary to rapier's math types (`physics::rapier`). How collider shapes are built —
-//! decompositions in [`crate::physics::shapes`], the thinning of big hull faces and the
-//! reduction of dense meshes' hulls (a scan of millions of triangles) in
-//! [`crate::physics::hull`].
+//! ([`crate::physics::object`]), drop regions ([`crate::physics::drop_region`]) and the conversions
+//! at the boundary to rapier's math types (`physics::rapier`). How collider shapes are built —
+//! decompositions in [`crate::physics::shapes`], the thinning of big hull faces and the reduction
+//! of dense meshes' hulls (a scan of millions of triangles) in [`crate::physics::hull`].
 //!
 //! ```
 //! use lgdm_pointcloud::mesh::Mesh;
@@ -444,9 +443,9 @@ impl World {
     }
 
     /// Steps until every object is at rest (asleep, or below the speed thresholds of
-    /// [`SettleConfig`](crate::physics::config::SettleConfig) for `quiet_steps` steps in a row) or `max_steps` have passed, with the
-    /// settling warm-start coefficient. For scene preparation (after spawning or resetting
-    /// objects), not while the gripper holds something.
+    /// [`SettleConfig`](crate::physics::config::SettleConfig) for `quiet_steps` steps in a row) or
+    /// `max_steps` have passed, with the settling warm-start coefficient. For scene preparation
+    /// (after spawning or resetting objects), not while the gripper holds something.
     pub fn settle(&mut self) -> SettleReport {
         let cfg = self.config.settle.clone();
         self.physics.integration_parameters.warmstart_coefficient = cfg.warmstart_coefficient;
@@ -564,8 +563,8 @@ impl World {
     }
 
     /// Sets the drawing [`World::object_collider_mesh`] returns for `handle` — one built before
-    /// from the same library object's same collider (a cache of [`crate::physics::shapes::LibraryShapes`]);
-    /// a drawing already built is kept.
+    /// from the same library object's same collider (a cache of
+    /// [`crate::physics::shapes::LibraryShapes`]); a drawing already built is kept.
     pub(crate) fn set_object_collider_mesh(
         &mut self,
         handle: ObjectHandle,

@@ -27,9 +27,10 @@ pub trait ViewEncoder: std::fmt::Debug {
     /// Values per feature.
     fn dim(&self) -> usize;
     /// One feature per view (a cloud in `camera`'s optical frame, as
-    /// [`lgdm_pointcloud::dataset::view_cloud`] makes it and `lgdm gen-dataset` stores it;
-    /// `camera` is the dataset's camera, [`CameraSpec::camera`](lgdm_pointcloud::dataset::CameraSpec::camera)); `None` for a view it cannot
-    /// describe.
+    /// [`lgdm_pointcloud::dataset::view_cloud`] makes it and `lgdm gen-dataset` stores it; `camera`
+    /// is the dataset's camera,
+    /// [`CameraSpec::camera`](lgdm_pointcloud::dataset::CameraSpec::camera)); `None` for a view it
+    /// cannot describe.
     fn encode(
         &mut self,
         views: &[lgdm_pointcloud::PointCloud],
@@ -37,8 +38,8 @@ pub trait ViewEncoder: std::fmt::Debug {
     ) -> Result<Vec<Option<Vec<f32>>>, EncoderError>;
 }
 
-/// The error of a [`ViewEncoder`] (the autoencoder's bridge error, or a caller's own): kept as
-/// the source of [`RecognitionError::Encoder`](crate::recognition::error::RecognitionError::Encoder).
+/// The error of a [`ViewEncoder`] (the autoencoder's bridge error, or a caller's own): kept as the
+/// source of [`RecognitionError::Encoder`](crate::recognition::error::RecognitionError::Encoder).
 pub type EncoderError = Box<dyn std::error::Error + Send + Sync>;
 
 /// GOOD with [`GOOD_BINS`] bins: what `lgdm features` computes per stored view.

@@ -1,16 +1,16 @@
 //! The robot's views of an object on the table ([`orbit_features`]).
 //!
 //! **Where the views come from.** A virtual camera on the dataset's viewing geometry
-//! ([`CameraSpec`](lgdm_pointcloud::dataset::CameraSpec): 0.75 m from a point 0.1 m above the table under the object, 30° up, the
-//! Kinect-like 320×240 intrinsics) orbits the object on the table in steps of
-//! [`RecognitionConfig::view_step_rad`] (36°: the small dataset's turntable step). Orbiting a
-//! resting object is the turntable sequence of the object turned the other way, so the robot's
-//! views are the dataset's views of the same object (same distance, elevation, pixels per metre,
-//! self-occlusion), and a model trained with `lgdm train` on a generated dataset recognises the
-//! robot's objects. The grasp close-up, by contrast, looks straight down from 0.5 m: a view the
+//! ([`CameraSpec`](lgdm_pointcloud::dataset::CameraSpec): 0.75 m from a point 0.1 m above the table
+//! under the object, 30° up, the Kinect-like 320×240 intrinsics) orbits the object on the table in
+//! steps of [`RecognitionConfig::view_step_rad`] (36°: the small dataset's turntable step).
+//! Orbiting a resting object is the turntable sequence of the object turned the other way, so the
+//! robot's views are the dataset's views of the same object (same distance, elevation, pixels per
+//! metre, self-occlusion), and a model trained with `lgdm train` on a generated dataset recognises
+//! the robot's objects. The grasp close-up, by contrast, looks straight down from 0.5 m: a view the
 //! datasets never contain (a top view of a can is a disc), and only one. Neighbours on the table
-//! occlude the object as they would a real camera; only the object's own pixels are used. The
-//! views draw the object's mesh ([`RecognitionConfig::draw`], what the dataset draws).
+//! occlude the object as they would a real camera; only the object's own pixels are used. The views
+//! draw the object's mesh ([`RecognitionConfig::draw`], what the dataset draws).
 
 use lgdm_pointcloud::dataset::view_cloud;
 use rand_chacha::ChaCha8Rng;

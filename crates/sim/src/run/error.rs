@@ -68,8 +68,8 @@ pub enum SimError {
     /// An observer of the run failed (recording: a [`crate::run::record::RecordError`]).
     #[error(transparent)]
     Observer(ObserverError),
-    /// The run was asked to stop ([`crate::run::job::StopToken`]); its run directory holds the rounds it
-    /// finished, and `resume` plays the rest.
+    /// The run was asked to stop ([`crate::run::job::StopToken`]); its run directory holds the
+    /// rounds it finished, and `resume` plays the rest.
     #[error("stopped after {rounds_done} finished round(s)")]
     Stopped {
         /// Rounds finished and checkpointed.

@@ -6,15 +6,15 @@
 //! - [`PickPlaceJob`]: the paper's pick-and-place with recognition in the loop, and with
 //!   [`PickPlaceSetup::targets`] its packing.
 //!
-//! Each is prepared from a setup ([`GraspSetup`], [`PickPlaceSetup`]): the objects are built
-//! or imported ([`crate::run::objects`]), the model to start from is read and checked against the encoder, and every
-//! setting is validated, and every object the rounds will show has its collider built — all
-//! before a grasp source or an encoder is loaded (the autoencoder's
-//! start torch) and before the run directory is touched. [`GraspJob::run`] and
-//! [`PickPlaceJob::run`] then play the run and, given an [`Output`], write the run directory
-//! the binary writes: `results.json`, `summary.txt`, with recognition `model.lgdm` +
-//! `model.json` (which `--model`, `lgdm eval` and `lgdm.GDM.load` read), with recording
-//! `rounds/round-NNNN.{mcap,png}`, and the plots ([`crate::run::plots`]).
+//! Each is prepared from a setup ([`GraspSetup`], [`PickPlaceSetup`]): the objects are built or
+//! imported ([`crate::run::objects`]), the model to start from is read and checked against the
+//! encoder, and every setting is validated, and every object the rounds will show has its collider
+//! built — all before a grasp source or an encoder is loaded (the autoencoder's start torch) and
+//! before the run directory is touched. [`GraspJob::run`] and [`PickPlaceJob::run`] then play the
+//! run and, given an [`Output`], write the run directory the binary writes: `results.json`,
+//! `summary.txt`, with recognition `model.lgdm` + `model.json` (which `--model`, `lgdm eval` and
+//! `lgdm.GDM.load` read), with recording `rounds/round-NNNN.{mcap,png}`, and the plots
+//! ([`crate::run::plots`]).
 //!
 //! ```no_run
 //! use lgdm_sim::run::job::{Output, PickPlaceJob, PickPlaceSetup};

@@ -1,7 +1,7 @@
 //! The seam where cross-cutting concerns attach to a run: the runner calls a [`RunObserver`] at
-//! each event of a round — its start, the table set, every camera look, a recognition, the
-//! basket chosen, a grasp planned and done, an attempt recorded, the round's end — as rapier's
-//! pipeline calls its hooks. Recording ([`crate::run::record::RoundRecorder`]) is one; `()` observes
+//! each event of a round — its start, the table set, every camera look, a recognition, the basket
+//! chosen, a grasp planned and done, an attempt recorded, the round's end — as rapier's pipeline
+//! calls its hooks. Recording ([`crate::run::record::RoundRecorder`]) is one; `()` observes
 //! nothing. Observers only read: a run's results are the same with any observer.
 //!
 //! ```
@@ -29,7 +29,8 @@ use crate::run::results::{AttemptRecord, RoundRecord};
 use crate::tasks::packing::BasketChoice;
 use crate::tasks::scenario::{PlacedObject, Scenario};
 
-/// An observer's error (recording's is a [`crate::run::record::RecordError`]); the run stops with it.
+/// An observer's error (recording's is a [`crate::run::record::RecordError`]); the run stops with
+/// it.
 pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
 
 /// What a round is part of, for the observer.

@@ -1,7 +1,7 @@
 //! The plots of a sim run directory, drawn from the numbers of its [`RunResults`] (the summary,
 //! [`RunResults::learning_curve`], [`crate::tasks::arrival::Evaluation::per_category`]) with
-//! [`lgdm_base::plot`]'s charts. [`crate::run::run_dir::SimRunDir::write_results`] draws them beside
-//! `results.json`, so the binary and `lgdm.sim` leave the same pictures ([`write_plots`]).
+//! [`lgdm_base::plot`]'s charts. [`crate::run::run_dir::SimRunDir::write_results`] draws them
+//! beside `results.json`, so the binary and `lgdm.sim` leave the same pictures ([`write_plots`]).
 
 use std::path::Path;
 

@@ -221,10 +221,10 @@ pub struct Summary {
     pub early_category_accuracy_at_switch: Option<Rate>,
 }
 
-/// Grasp proposals planned, and those refused before they were tried because a pad would
-/// close on air ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]; every source's proposals are
-/// checked). Isolated rounds plan a look's ranked grasps together (counted in its first
-/// attempt); cluttered ones plan best first, as far as the grasp tried.
+/// Grasp proposals planned, and those refused before they were tried because a pad would close on
+/// air ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]; every source's proposals are
+/// checked). Isolated rounds plan a look's ranked grasps together (counted in its first attempt);
+/// cluttered ones plan best first, as far as the grasp tried.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct Proposals {
     /// Proposals planned.

@@ -264,7 +264,8 @@ impl SimRunDir {
         Ok(())
     }
 
-    /// Writes [`RESULTS_FILE`], [`SUMMARY_FILE`] and the plots ([`crate::run::plots::write_plots`]).
+    /// Writes [`RESULTS_FILE`], [`SUMMARY_FILE`] and the plots
+    /// ([`crate::run::plots::write_plots`]).
     pub fn write_results(&self, results: &RunResults) -> Result<(), SimError> {
         self.write_file(RESULTS_FILE, results.to_json().as_bytes())?;
         self.write_file(SUMMARY_FILE, summary_text(results).as_bytes())?;

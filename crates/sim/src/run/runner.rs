@@ -1,19 +1,19 @@
 //! Playing a run: rounds of a [`Scenario`] with one [`GraspSource`], every attempt recorded.
 //!
-//! [`run_trials`] plays `rounds` rounds (round r seeded with `derive_seed(seed, …, r)`, so the
-//! same seed gives the same rounds): set the table ([`crate::tasks::scenario`]), look with the overview
+//! [`run_trials`] plays `rounds` rounds (round r seeded with `derive_seed(seed, …, r)`, so the same
+//! seed gives the same rounds): set the table ([`crate::tasks::scenario`]), look with the overview
 //! camera, take a close-up crop per object ([`crate::perception`]), ask the source for ranked
 //! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends. It returns
 //! [`RunResults`] ([`crate::run::results`]).
 //!
-//! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognizer`]): before each attempt
-//! the object aimed at is recognised (once per object and round) and taught when the robot did
-//! not know it or was wrong, with replay after each round. Two policies attach to it: with
-//! [`RunSpec::packing`] each object goes to the basket of the category the robot recognises it
+//! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognizer`]): before
+//! each attempt the object aimed at is recognised (once per object and round) and taught when the
+//! robot did not know it or was wrong, with replay after each round. Two policies attach to it:
+//! with [`RunSpec::packing`] each object goes to the basket of the category the robot recognises it
 //! as and is judged against its true one ([`crate::tasks::packing`]; the basket is chosen once per
 //! attempt), with [`RunSpec::arrival`] the categories arrive over time and the run ends with the
-//! model's first guess about every object ([`crate::tasks::arrival`]). Everything else that watches a
-//! run — recording, for one — is a [`RunObserver`] the runner calls at each event
+//! model's first guess about every object ([`crate::tasks::arrival`]). Everything else that watches
+//! a run — recording, for one — is a [`RunObserver`] the runner calls at each event
 //! ([`crate::run::observe`]); the results are the same with any observer.
 //!
 //! Progress is reported after every attempt and every round as a [`Progress`] of `attempts`
@@ -365,8 +365,8 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
     }
 
     /// Whether `candidate`'s pads, as planned in `cell`, close on something
-    /// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]): a plan that would close on air is
-    /// never tried.
+    /// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]): a plan that would close on air
+    /// is never tried.
     fn reaches(
         &self,
         cell: &Cell,

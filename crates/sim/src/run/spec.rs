@@ -64,11 +64,13 @@ pub struct RunSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_attempts: Option<usize>,
     /// Packing: each object goes to the basket of the category it is recognised as (none: every
-    /// object to [`crate::grasping::attempt::AttemptConfig::target_basket`]). Needs recognition ([`crate::run::runner::run_pick_place`]).
+    /// object to [`crate::grasping::attempt::AttemptConfig::target_basket`]). Needs recognition
+    /// ([`crate::run::runner::run_pick_place`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub packing: Option<PackingSpec>,
     /// Categories arriving over time, and the end-of-run evaluation of the early ones (none: every
-    /// round draws from the whole library). Needs recognition ([`crate::run::runner::run_pick_place`]).
+    /// round draws from the whole library). Needs recognition
+    /// ([`crate::run::runner::run_pick_place`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub arrival: Option<Arrival>,
     /// Every constant.

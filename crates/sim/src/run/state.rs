@@ -10,8 +10,8 @@ use crate::tasks::arrival::Evaluation;
 
 /// Where a run is after its finished rounds: everything the rest of it depends on besides the
 /// recognizer's model (saved beside it). A job writes it after every round
-/// ([`crate::run::run_dir::PROGRESS_FILE`]) and resumes from it: the resumed run's results, model and
-/// recordings equal those of a run that was never stopped.
+/// ([`crate::run::run_dir::PROGRESS_FILE`]) and resumes from it: the resumed run's results, model
+/// and recordings equal those of a run that was never stopped.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunState {
     /// Rounds finished.

@@ -8,17 +8,19 @@
 //! ([`crate::grasping::attempt::AttemptConfig::carry_height_m`], ≤ 1.03 m; see [`crate::robot`]).
 //!
 //! **Which basket: what the robot recognises.** The basket is chosen before the grasp from the
-//! object's recognition ([`crate::recognition::recognizer`]), as the paper's robot packs by what it recognises:
-//! - the robot's first guess when it trusts it ([`crate::recognition::recognizer::Guess::known`]) — a confident
-//!   wrong guess sends the object to the wrong basket; the teacher's correction is learnt for the
-//!   next encounter but comes too late for this one (the robot acts on its own answer);
+//! object's recognition ([`crate::recognition::recognizer`]), as the paper's robot packs by what it
+//! recognises:
+//! - the robot's first guess when it trusts it ([`crate::recognition::recognizer::Guess::known`]) —
+//!   a confident wrong guess sends the object to the wrong basket; the teacher's correction is
+//!   learnt for the next encounter but comes too late for this one (the robot acts on its own
+//!   answer);
 //! - the teacher's label when the robot said "I don't know this" (it asked, and was told);
 //! - the other (left) basket when there is no recognition at all (no object aimed at).
 //!
 //! **Judging.** Grasp and placement are judged physically as in every attempt
-//! ([`crate::grasping::attempt::execute`]); [`judge`] then compares the basket the object went to with the
-//! one its true category belongs to. An object placed in the wrong basket is a failed attempt
-//! with reason [`FailureReason::Misrecognised`], even though the grasp and the placement
+//! ([`crate::grasping::attempt::execute`]); [`judge`] then compares the basket the object went to
+//! with the one its true category belongs to. An object placed in the wrong basket is a failed
+//! attempt with reason [`FailureReason::Misrecognised`], even though the grasp and the placement
 //! physically succeeded (it has left the table: it counts as cleared, not as packed).
 //!
 //! ```

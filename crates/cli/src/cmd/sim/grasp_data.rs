@@ -1,5 +1,5 @@
-//! `lgdm sim grasp-data`: grasp images labelled by physics ([`lgdm_sim::datagen::grasp_data`]) — options
-//! to a job, a progress bar, the counts and the throughput at the end.
+//! `lgdm sim grasp-data`: grasp images labelled by physics ([`lgdm_sim::datagen::grasp_data`]) —
+//! options to a job, a progress bar, the counts and the throughput at the end.
 
 use std::time::Instant;
 

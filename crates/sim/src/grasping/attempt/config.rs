@@ -111,12 +111,12 @@ pub struct AttemptConfig {
     /// network's input pixels, smoothing; default: train_ae's decoding; the jaw and the count
     /// are the checkpoint's and the scenario's).
     pub decode: GraspDecodeParams,
-    /// How a source's proposals are checked against the close-up's depth before the robot
-    /// plans them (default: unset, the source's own default,
-    /// [`crate::grasping::source::GraspSource::proposal_check`] — `contacts`, only the planner's check
-    /// that both pads close on something ([`crate::grasping::attempt::GraspPlan::reaches_contacts`], which every plan
-    /// gets whatever this says), for all but the network). A run's results record the check
-    /// it used.
+    /// How a source's proposals are checked against the close-up's depth before the robot plans
+    /// them (default: unset, the source's own default,
+    /// [`crate::grasping::source::GraspSource::proposal_check`] — `contacts`, only the planner's
+    /// check that both pads close on something
+    /// ([`crate::grasping::attempt::GraspPlan::reaches_contacts`], which every plan gets whatever
+    /// this says), for all but the network). A run's results record the check it used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub proposal_check: Option<ProposalCheck>,
     /// When the check refuses every proposal for the full stroke, ask the source once more
@@ -269,7 +269,8 @@ impl AttemptConfig {
     }
 }
 
-/// Errors that abort an attempt (not failures of the grasp: those are [`crate::grasping::attempt::FailureReason`]s).
+/// Errors that abort an attempt (not failures of the grasp: those are
+/// [`crate::grasping::attempt::FailureReason`]s).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AttemptError {
     /// A bad [`AttemptConfig`] field.

@@ -36,8 +36,9 @@ pub enum FailureReason {
     SlippedDuringCarry,
     /// The object was released but did not come to rest inside the basket.
     DroppedOutside,
-    /// Packing only (judged by [`crate::tasks::packing::judge`], never by [`crate::grasping::attempt::execute()`]): the object was
-    /// placed, but in the basket of a category that is not its own.
+    /// Packing only (judged by [`crate::tasks::packing::judge`], never by
+    /// [`crate::grasping::attempt::execute()`]): the object was placed, but in the basket of a
+    /// category that is not its own.
     Misrecognised,
 }
 

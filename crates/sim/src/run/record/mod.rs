@@ -17,14 +17,26 @@
 //!
 //! | topic | schema | content |
 //! |---|---|---|
-//! | `/tf` | `foxglove.FrameTransforms` | `world` → `object/<name>`, `arm/link_1`…`arm/link_6`, `gripper/palm`, `gripper/finger_l` / `finger_r` at [`RecordConfig::tf_rate_hz`]; `world` → `camera/<name>` (optical frame: x right, y down, z forward) at each look |
-//! | `/scene` | `foxglove.SceneUpdate` | one entity per body, `frame_locked`, in its tf frame: object colliders (triangles in the meshes' colours), link capsules (cylinders and spheres), palm and finger boxes; the scenery (table, baskets, pedestal) as boxes in `world`; sent when a body appears, deletions when an object goes |
-//! | `/grasp` | `foxglove.SceneUpdate` | entity `grasp` in `world`: the two pads at the planned tool centre (yawed, open to the predicted opening), the opening line, the approach arrow, a label; metadata rank, quality, opening, yaw, outcome; yellow when planned, then green (placed), orange (grasped, not placed) or red (failed) |
-//! | `/camera/{overview,closeup,basket}/rgb` | `foxglove.RawImage` | `rgb8` |
-//! | `/camera/{overview,closeup,basket}/depth` | `foxglove.RawImage` | `32FC1`, optical z in metres, 0 where nothing was hit |
-//! | `/camera/{overview,closeup,basket}/calibration` | `foxglove.CameraCalibration` | pinhole (`plumb_bob`, no distortion) |
-//! | `/events` | `foxglove.Log` | round start and end, attempt start and end with the success flags and the failure reason; recognitions and the teacher's lessons (pick-and-place) |
-//! | `/labels` | `foxglove.SceneUpdate` | pick-and-place: entity `label/<object frame>`, `frame_locked` in the object's frame, a billboard text above it (true instance, the robot's first guess and confidence, the teacher's part), green when the robot knew it, amber when it did not know, red when it was wrong; metadata with the same fields; deleted when the object goes |
+//! | `/tf` | `foxglove.FrameTransforms` | `world` → `object/<name>`, `arm/link_1`…`arm/link_6`,
+//! `gripper/palm`, `gripper/finger_l` / `finger_r` at [`RecordConfig::tf_rate_hz`]; `world` →
+//! `camera/<name>` (optical frame: x right, y down, z forward) at each look | | `/scene` |
+//! `foxglove.SceneUpdate` | one entity per body, `frame_locked`, in its tf frame: object colliders
+//! (triangles in the meshes' colours), link capsules (cylinders and spheres), palm and finger
+//! boxes; the scenery (table, baskets, pedestal) as boxes in `world`; sent when a body appears,
+//! deletions when an object goes | | `/grasp` | `foxglove.SceneUpdate` | entity `grasp` in `world`:
+//! the two pads at the planned tool centre (yawed, open to the predicted opening), the opening
+//! line, the approach arrow, a label; metadata rank, quality, opening, yaw, outcome; yellow when
+//! planned, then green (placed), orange (grasped, not placed) or red (failed) | |
+//! `/camera/{overview,closeup,basket}/rgb` | `foxglove.RawImage` | `rgb8` | |
+//! `/camera/{overview,closeup,basket}/depth` | `foxglove.RawImage` | `32FC1`, optical z in metres,
+//! 0 where nothing was hit | | `/camera/{overview,closeup,basket}/calibration` |
+//! `foxglove.CameraCalibration` | pinhole (`plumb_bob`, no distortion) | | `/events` |
+//! `foxglove.Log` | round start and end, attempt start and end with the success flags and the
+//! failure reason; recognitions and the teacher's lessons (pick-and-place) | | `/labels` |
+//! `foxglove.SceneUpdate` | pick-and-place: entity `label/<object frame>`, `frame_locked` in the
+//! object's frame, a billboard text above it (true instance, the robot's first guess and
+//! confidence, the teacher's part), green when the robot knew it, amber when it did not know, red
+//! when it was wrong; metadata with the same fields; deleted when the object goes |
 //!
 //! The file also holds an MCAP metadata record `lgdm.round` (round, scenario, grasp source,
 //! seed, objects).
@@ -68,10 +80,8 @@ use prost::Message as _;
 use rapier3d::prelude::{ColliderHandle, RigidBodyHandle};
 use serde::{Deserialize, Serialize};
 
-use crate::grasping::attempt::Cell;
-use crate::grasping::attempt::Execution;
-use crate::perception::camera::{CameraConfig, render_world};
-use crate::perception::camera::{OverviewCamera, SceneFrame};
+use crate::grasping::attempt::{Cell, Execution};
+use crate::perception::camera::{CameraConfig, OverviewCamera, SceneFrame, render_world};
 use crate::physics::object::ObjectHandle;
 use crate::physics::rapier::rapier_to_isometry;
 use crate::physics::world::{StepObserver, World};
