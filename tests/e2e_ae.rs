@@ -365,7 +365,7 @@ fn without_ae_checkpoint_the_shipped_one_is_used() {
 fn sim_grasp_network_plays_isolated_rounds() {
     let dir = work_dir().join("sim");
     // The default gripper's stroke (the runs here leave --gripper out).
-    let stroke = f64::from(lgdm_sim::gripper::GripperConfig::default().stroke_m);
+    let stroke = f64::from(lgdm_sim::robot::gripper::GripperConfig::default().stroke_m);
     std::fs::create_dir_all(&dir).unwrap();
     let sim = |out: &Path, extra: &[&str]| {
         lgdm(&dir.join("cache"))

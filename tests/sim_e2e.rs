@@ -49,7 +49,7 @@ const REASONS: [&str; 8] = [
 
 fn check_schema(r: &Value, scenario: &str, source: &str, rounds: u64) {
     // The default gripper's stroke (the runs here leave --gripper out).
-    let stroke = f64::from(lgdm_sim::gripper::GripperConfig::default().stroke_m);
+    let stroke = f64::from(lgdm_sim::robot::gripper::GripperConfig::default().stroke_m);
     assert_eq!(r["format_version"], 1);
     assert_eq!(r["run"]["scenario"], scenario);
     assert_eq!(r["run"]["grasp_source"], source);

@@ -2,7 +2,7 @@
 //! atomically ([`crate::fs::write_bytes`]): line charts with a shaded band per series
 //! ([`line_chart`]), bar charts with whiskers ([`bar_chart`]) and heat maps of counts
 //! ([`heat_map`]). The run directories' plots are drawn with these —
-//! `lgdm_gdm::experiment::plots` for training runs and `lgdm_sim::plots` for robot runs —
+//! `lgdm_gdm::experiment::plots` for training runs and `lgdm_sim::run::plots` for robot runs —
 //! whoever writes the run, the binary or the Python module. Errors come back as [`io::Error`].
 //!
 //! ```

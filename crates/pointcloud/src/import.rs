@@ -43,11 +43,11 @@ pub const MIN_OBJECT_EXTENT_MM: f64 = 20.0;
 /// default turntable camera sees about 0.6 m top to bottom).
 pub const MAX_OBJECT_EXTENT_MM: f64 = 600.0;
 
-/// Most triangles a mesh file may have (10,000,000). Real scans of household objects have up
-/// to a few million, and dense meshes are simplified before the physics uses them
-/// (`lgdm_sim::hull`, `lgdm_sim::shapes`); loading a 2-million-triangle STL peaks at 145 MB, so
-/// one of 10 million would take about 0.7 GB. A binary STL or a PLY says its size in its header
-/// and is refused before it is read; an OBJ after.
+/// Most triangles a mesh file may have (10,000,000). Real scans of household objects have up to a
+/// few million, and dense meshes are simplified before the physics uses them
+/// (`lgdm_sim::physics::hull`, `lgdm_sim::physics::shapes`); loading a 2-million-triangle STL peaks
+/// at 145 MB, so one of 10 million would take about 0.7 GB. A binary STL or a PLY says its size in
+/// its header and is refused before it is read; an OBJ after.
 pub const MAX_MESH_TRIANGLES: usize = 10_000_000;
 
 /// Most vertices a mesh file may have (10,000,000; see [`MAX_MESH_TRIANGLES`]).

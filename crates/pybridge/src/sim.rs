@@ -17,16 +17,18 @@ use lgdm_pointcloud::grasp::decode::{
     DecodedGrasp, GraspDecodeParams, GraspMapsView, decode_grasps, wrap_angle,
 };
 use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::config::{ConfigOverrides, OptionValue, SimConfig};
-use lgdm_sim::job::{
-    GraspJob, GraspSetup, JobKind, JobRecord, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource, SourceError, builtin_source};
+use lgdm_sim::recognition::config::RecognitionConfig;
+use lgdm_sim::recognition::encoder::{EncoderError, GoodEncoder, ViewEncoder};
+use lgdm_sim::run::config::{ConfigOverrides, OptionValue, SimConfig};
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::{
+    GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup, StopToken,
 };
-use lgdm_sim::recognize::{EncoderError, GoodEncoder, RecognitionConfig, ViewEncoder};
-use lgdm_sim::record::RecordConfig;
-use lgdm_sim::results::RunResults;
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
-use lgdm_sim::spec::{SimError, StopToken, builtin_source};
+use lgdm_sim::run::objects::ObjectSource;
+use lgdm_sim::run::record::RecordConfig;
+use lgdm_sim::run::results::RunResults;
+use lgdm_sim::tasks::scenario::Scenario;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
@@ -449,7 +451,7 @@ fn record(record: bool, record_rounds: Option<usize>) -> Option<RecordConfig> {
 
 fn scenario(name: &str) -> PyResult<Scenario> {
     name.parse()
-        .map_err(|e: lgdm_sim::scenario::UnknownScenario| {
+        .map_err(|e: lgdm_sim::tasks::scenario::UnknownScenario| {
             errors::new(Kind::Config, format!("scenario: {e}"))
         })
 }
@@ -478,7 +480,7 @@ fn play(
         let result = match &mut source {
             Source::Builtin(name) => match builtin_source(name, seed) {
                 Ok(mut s) => play(s.as_mut(), &mut report),
-                Err(e) => Err(e),
+                Err(e) => Err(e.into()),
             },
             Source::Callable(c) => play(c, &mut report),
         };

@@ -1,9 +1,10 @@
-//! The Rust side of the autoencoder bridge returns exactly what `train_ae.bridge.infer` returns
-//! in Python, for a freshly initialised `cpu`-configuration checkpoint, with the documented
-//! shapes and L2-normalised features; and the network's grasps on an object-centred crop
+//! The Rust side of the autoencoder bridge returns exactly what `train_ae.bridge.infer` returns in
+//! Python, for a freshly initialised `cpu`-configuration checkpoint, with the documented shapes and
+//! L2-normalised features; and the network's grasps on an object-centred crop
 //! (`AutoEncoder::crop_grasps`, the Rust decoder) are the grasps `python -m train_ae.evaluate`'s
-//! decoding gives on the same crop with the shipped checkpoint, in crop pixels. Needs `--features ae` and numpy, torch and train_ae in the
-//! venv (`$VIRTUAL_ENV`, `$LGDM_VENV` or ~/.cache/lgdm/venv); a missing one fails with its name.
+//! decoding gives on the same crop with the shipped checkpoint, in crop pixels. Needs `--features
+//! ae` and numpy, torch and train_ae in the venv (`$VIRTUAL_ENV`, `$LGDM_VENV` or
+//! ~/.cache/lgdm/venv); a missing one fails with its name.
 #![cfg(feature = "ae")]
 
 use lgdm_pointcloud::crop::{CropSpec, crop_largest_object};
@@ -14,7 +15,7 @@ use lgdm_pointcloud::objects::procedural_library;
 use lgdm_pointcloud::segment::SegmentParams;
 use lgdm_pybridge::ae::robot::NetworkSource;
 use lgdm_pybridge::ae::{self, AeError, AutoEncoder, FEATURE_DIM};
-use lgdm_sim::source::{GraspQuery, GraspSource};
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource};
 use numpy::ndarray::{Array2, Array3, Array4};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;

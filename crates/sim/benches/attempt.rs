@@ -1,13 +1,14 @@
 //! One full grasp attempt of the robot, timed: a decomposed procedural mug settled on the table
-//! (with the 2F-85), the arm at its ready pose; the attempt approaches, descends, closes, lifts, holds, carries
-//! to the basket, releases and parks (`execute` + `park`: physics, IK and trajectories).
-//! `perceive_and_plan` times what comes before: the overview frame, segmentation, the close-up
-//! frame and crop, the analytic source and the grasp plan; `proposal_check_12` the depth check
-//! and refinement of 12 proposals (`--proposal-check refine-first`, the network's default).
+//! (with the 2F-85), the arm at its ready pose; the attempt approaches, descends, closes, lifts,
+//! holds, carries to the basket, releases and parks (`execute` + `park`: physics, IK and
+//! trajectories). `perceive_and_plan` times what comes before: the overview frame, segmentation,
+//! the close-up frame and crop, the analytic source and the grasp plan; `proposal_check_12` the
+//! depth check and refinement of 12 proposals (`--proposal-check refine-first`, the network's
+//! default).
 //!
 //! The scene is built fresh for every iteration outside the timing (`iter_batched`). The
 //! headless 750-attempt figure comes from `lgdm sim grasp` itself (its summary prints wall time
-//! per attempt and where it goes); see the README.
+//! per attempt and where it goes); see docs/results.md, "Speed".
 //!
 //! `full_attempt_ycb` is the same attempt on one of the paper's YCB objects with the paper's
 //! gripper (2F-140): `LGDM_BENCH_YCB=DIR` names a directory `lgdm sim objects --out DIR` wrote
@@ -26,16 +27,19 @@ use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::objects::{ObjectModel, procedural_object};
-use lgdm_sim::attempt::{AttemptConfig, Cell, ProposalCheck, execute, park, plan_grasp};
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::grasping::attempt::{AttemptConfig, Cell, execute, park, plan_grasp};
+use lgdm_sim::grasping::proposals::checked_grasps;
+use lgdm_sim::grasping::source::{
+    AnalyticSource, FixedSource, GraspQuery, GraspSource, ProposalCheck,
+};
 use lgdm_sim::perception::{ObjectView, Perception};
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::shapes::{LibraryShapes, ShapeConfig};
+use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::RobotConfig;
-use lgdm_sim::runner::checked_grasps;
-use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
+use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::run::config::SimConfig;
 use lgdm_sim::timing::WallTimes;
-use lgdm_sim::world::{World, WorldConfig};
 
 struct Scene {
     cell: Cell,

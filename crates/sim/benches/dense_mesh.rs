@@ -17,8 +17,9 @@ use lgdm_base::seed::splitmix64;
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::ObjectModel;
-use lgdm_sim::shapes::{LibraryShapes, ShapeConfig, decompose};
-use lgdm_sim::world::{World, WorldConfig};
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::shapes::{LibraryShapes, ShapeConfig, decompose};
+use lgdm_sim::physics::world::World;
 
 /// A closed turned vase: `rings` rings of `segments` vertices (noise up to ±`noise_m` on each
 /// coordinate), a centre vertex at the bottom and the top; 2·segments·rings triangles.

@@ -1,9 +1,9 @@
-//! Do the labels of `lgdm sim grasp-data` say what the arm would do? The same grasp plans,
-//! tried by the free gripper that labels the data ([`lgdm_sim::free_grasp`]) and by the arm
-//! ([`lgdm_sim::attempt::execute`]), on each isolated procedural object of one category
-//! (generator seed 0, five instances, two placements each): the analytic source's best grasp
-//! turned in steps of 0.5 rad, at its own opening and at 7.5 and 8.5 cm. One line per pair of
-//! trials, then how many agree.
+//! Do the labels of `lgdm sim grasp-data` say what the arm would do? The same grasp plans, tried by
+//! the free gripper that labels the data ([`lgdm_sim::grasping::free_grasp`]) and by the arm
+//! ([`lgdm_sim::grasping::attempt::execute`]), on each isolated procedural object of one category
+//! (generator seed 0, five instances, two placements each): the analytic source's best grasp turned
+//! in steps of 0.5 rad, at its own opening and at 7.5 and 8.5 cm. One line per pair of trials, then
+//! how many agree.
 //!
 //! ```sh
 //! cargo run --release -p lgdm-sim --example free_vs_arm -- teapot
@@ -15,17 +15,18 @@
 
 use std::error::Error;
 
-use lgdm_sim::attempt::{Cell, execute, plan_grasp, plan_grasp_for};
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::free_grasp::{FreeGrasp, try_grasp};
-use lgdm_sim::job::ObjectSource;
+use lgdm_sim::grasping::attempt::{Cell, execute, plan_grasp, plan_grasp_for};
+use lgdm_sim::grasping::free_grasp::{FreeGrasp, try_grasp};
+use lgdm_sim::grasping::proposals::ranked_grasps;
+use lgdm_sim::grasping::source::AnalyticSource;
 use lgdm_sim::perception::{ObjectView, Perception};
-use lgdm_sim::runner::ranked_grasps;
-use lgdm_sim::scenario::{Scenario, set_table};
-use lgdm_sim::shapes::LibraryShapes;
-use lgdm_sim::source::AnalyticSource;
+use lgdm_sim::physics::object::ObjectHandle;
+use lgdm_sim::physics::shapes::LibraryShapes;
+use lgdm_sim::physics::world::World;
+use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::objects::ObjectSource;
+use lgdm_sim::tasks::scenario::{Scenario, set_table};
 use lgdm_sim::timing::WallTimes;
-use lgdm_sim::world::{ObjectHandle, World};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

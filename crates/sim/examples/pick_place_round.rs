@@ -12,12 +12,12 @@
 use std::path::PathBuf;
 
 use lgdm_gdm::Gdm;
-use lgdm_sim::job::{Output, PickPlaceJob, PickPlaceSetup};
-use lgdm_sim::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelRecord};
-use lgdm_sim::recognize::GoodEncoder;
-use lgdm_sim::report::summary_text;
-use lgdm_sim::results::RESULTS_FILE;
-use lgdm_sim::source::AnalyticSource;
+use lgdm_sim::grasping::source::AnalyticSource;
+use lgdm_sim::recognition::encoder::GoodEncoder;
+use lgdm_sim::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelRecord};
+use lgdm_sim::run::job::{Output, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::run::report::summary_text;
+use lgdm_sim::run::results::RESULTS_FILE;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let tmp = tempfile::tempdir()?;

@@ -13,18 +13,22 @@ use lgdm_pointcloud::grasp::GraspSpec;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::math::{transform_point, translation};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library, procedural_object};
-use lgdm_sim::attempt::{
-    AttemptConfig, Cell, FailureReason, GraspPlan, ProposalCheck, execute, park, plan_grasp,
+use lgdm_sim::grasping::attempt::{
+    AttemptConfig, Cell, FailureReason, GraspPlan, execute, park, plan_grasp,
+};
+use lgdm_sim::grasping::proposals::checked_grasps;
+use lgdm_sim::grasping::source::{
+    AnalyticSource, FixedSource, GraspQuery, GraspSource, ProposalCheck, builtin_source,
 };
 use lgdm_sim::perception::{ObjectView, Perception, WorldGrasp};
-use lgdm_sim::results::RunResults;
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::world::World;
 use lgdm_sim::robot::RobotConfig;
-use lgdm_sim::runner::{checked_grasps, run_trials};
-use lgdm_sim::scenario::{Scenario, ScenarioConfig, on_table, set_table};
-use lgdm_sim::source::{AnalyticSource, FixedSource, GraspQuery, GraspSource};
-use lgdm_sim::spec::{RunSpec, builtin_source};
+use lgdm_sim::run::results::RunResults;
+use lgdm_sim::run::runner::run_trials;
+use lgdm_sim::run::spec::RunSpec;
+use lgdm_sim::tasks::scenario::{Scenario, ScenarioConfig, on_table, set_table};
 use lgdm_sim::timing::WallTimes;
-use lgdm_sim::world::{World, WorldConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -47,7 +51,7 @@ fn analytic_grasps_simple_objects_and_beats_random() {
     let analytic = run("analytic", 20, 11, &library);
     let random = run("random", 20, 11, &library);
     let (a, r) = (&analytic.summary, &random.summary);
-    let rate = |s: &lgdm_sim::results::Summary| s.grasp_success_rate.value.unwrap_or(0.0);
+    let rate = |s: &lgdm_sim::run::results::Summary| s.grasp_success_rate.value.unwrap_or(0.0);
     assert!(a.attempts >= 20, "{} attempts", a.attempts);
     assert!(
         rate(a) >= 0.6,
@@ -106,7 +110,7 @@ fn alone_on_the_table(
     let perception = Perception::new(Default::default()).unwrap();
     let scene = perception.look(&cell.world).unwrap();
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
-    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    let gripper = lgdm_sim::run::config::SimConfig::default().grasp_spec();
     (cell, view, gripper)
 }
 
@@ -309,7 +313,7 @@ fn place_a_can_in(basket: usize) {
     assert_eq!(scene.segments.len(), 1);
     let view = perception.close_up(&cell.world, &scene, 0).unwrap();
     assert_eq!(view.object, Some(h));
-    let gripper = lgdm_sim::config::SimConfig::default().grasp_spec();
+    let gripper = lgdm_sim::run::config::SimConfig::default().grasp_spec();
     let query = GraspQuery {
         crop: &view.crop,
         intrinsics: &view.shot.camera.intrinsics,
@@ -412,7 +416,7 @@ fn packed_and_pile_tables_hold_five_objects_on_the_table() {
     for scenario in [Scenario::Packed, Scenario::Pile] {
         let mut world = World::new(WorldConfig::default()).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(5);
-        let mut shapes = lgdm_sim::shapes::LibraryShapes::hulls(library.len());
+        let mut shapes = lgdm_sim::physics::shapes::LibraryShapes::hulls(library.len());
         let placed = set_table(
             &mut world,
             scenario,

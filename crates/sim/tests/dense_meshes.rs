@@ -8,8 +8,9 @@
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::ObjectModel;
-use lgdm_sim::shapes::{LibraryShapes, ShapeConfig};
-use lgdm_sim::world::{ObjectMaterial, World, WorldConfig};
+use lgdm_sim::physics::config::{ObjectMaterial, WorldConfig};
+use lgdm_sim::physics::shapes::{LibraryShapes, ShapeConfig};
+use lgdm_sim::physics::world::World;
 
 /// A sphere of `radius_m` resting on z = 0: an icosahedron whose triangles are split in four
 /// `level` times (20·4^level triangles), vertices shared.
@@ -156,7 +157,7 @@ fn check_colliders(name: &str, mesh: &Mesh) {
         mesh: mesh.clone(),
         physics: Default::default(),
     }];
-    lgdm_sim::scenario::check_library(&config, &library).unwrap();
+    lgdm_sim::tasks::scenario::check_library(&config, &library).unwrap();
     LibraryShapes::new(ShapeConfig::default(), 1)
         .check(&config, &library, &[0])
         .unwrap();

@@ -8,16 +8,17 @@ use std::path::Path;
 use lgdm_pointcloud::grasp::cornell::{GraspIndex, read_rectangles};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
-use lgdm_sim::attempt::{AttemptConfig, FailureReason, plan_grasp_for};
-use lgdm_sim::free_grasp::{FreeGrasp, try_grasp};
-use lgdm_sim::grasp_data::{GraspDataJob, GraspDataSetup};
-use lgdm_sim::gripper::GripperConfig;
-use lgdm_sim::job::ObjectSource;
+use lgdm_sim::datagen::grasp_data::{GraspDataJob, GraspDataSetup};
+use lgdm_sim::grasping::attempt::{AttemptConfig, FailureReason, plan_grasp_for};
+use lgdm_sim::grasping::free_grasp::{FreeGrasp, try_grasp};
 use lgdm_sim::perception::{Perception, WorldGrasp};
-use lgdm_sim::world::{World, WorldConfig};
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::world::World;
+use lgdm_sim::robot::gripper::GripperConfig;
+use lgdm_sim::run::objects::ObjectSource;
 
 /// A box 4 cm across x, 16 cm along y (wider than the 2F-140's 14 cm stroke), 6 cm tall.
-fn narrow_box() -> (World, lgdm_sim::world::ObjectHandle, [f64; 3]) {
+fn narrow_box() -> (World, lgdm_sim::physics::object::ObjectHandle, [f64; 3]) {
     let mut world = World::new(WorldConfig::default()).unwrap();
     let top = world.config().table.top_z_m();
     let mesh = Mesh::cuboid([0.0, 0.0, 0.03], [0.04, 0.16, 0.06], [60, 90, 200]);

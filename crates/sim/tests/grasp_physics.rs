@@ -11,11 +11,16 @@
 use lgdm_pointcloud::math::{Pose, rotation_z, transform_point, translation};
 use lgdm_pointcloud::mesh::Mesh;
 use lgdm_pointcloud::objects::{CATEGORIES, procedural_object};
-use lgdm_sim::gripper::{Gripper, GripperConfig, GripperModel, PalmPath, top_down_palm_pose};
-use lgdm_sim::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
+use lgdm_sim::physics::config::{ObjectMaterial, WorldConfig};
+use lgdm_sim::physics::drop_region::DropRegion;
+use lgdm_sim::physics::object::ObjectHandle;
+use lgdm_sim::physics::world::World;
+use lgdm_sim::robot::gripper::{
+    Gripper, GripperConfig, GripperModel, PalmPath, top_down_palm_pose,
+};
+use lgdm_sim::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp};
+use lgdm_sim::robot::trajectory::{JointTrajectory, LinearMove, plan_linear_move};
 use lgdm_sim::robot::{FollowOptions, Robot, RobotConfig};
-use lgdm_sim::trajectory::{JointTrajectory, LinearMove, plan_linear_move};
-use lgdm_sim::world::{DropRegion, ObjectHandle, ObjectMaterial, World, WorldConfig};
 use nalgebra::{Isometry3, Point3, Translation3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -8,15 +8,17 @@ use std::path::Path;
 
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
-use lgdm_sim::attempt::FailureReason;
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::gripper::{GripperConfig, GripperModel};
-use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource};
-use lgdm_sim::results::RoundEnd;
-use lgdm_sim::runner::{narrowest_width_m, solid_fraction};
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::spec::builtin_source;
-use lgdm_sim::world::{World, WorldConfig};
+use lgdm_sim::grasping::attempt::FailureReason;
+use lgdm_sim::grasping::source::builtin_source;
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::measure::{narrowest_width_m, solid_fraction};
+use lgdm_sim::physics::world::World;
+use lgdm_sim::robot::gripper::{GripperConfig, GripperModel};
+use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::job::{GraspJob, GraspSetup};
+use lgdm_sim::run::objects::ObjectSource;
+use lgdm_sim::run::results::RoundEnd;
+use lgdm_sim::tasks::scenario::Scenario;
 
 /// A closed can of diameter `d` and height `h` (m).
 fn can(d: f32, h: f32) -> Mesh {
@@ -67,7 +69,7 @@ fn a_closed_can_fills_its_hull_and_an_open_bowl_does_not() {
 }
 
 /// A run with the 2F-85: the wide cans below are sized against its 85 mm stroke.
-fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::results::RunResults {
+fn grasp_run(dir: &Path, scenario: Scenario, rounds: usize) -> lgdm_sim::run::results::RunResults {
     grasp_run_with(
         dir,
         scenario,
@@ -87,7 +89,7 @@ fn grasp_run_with(
     scenario: Scenario,
     rounds: usize,
     config: SimConfig,
-) -> lgdm_sim::results::RunResults {
+) -> lgdm_sim::run::results::RunResults {
     let setup = GraspSetup {
         scenario,
         rounds,

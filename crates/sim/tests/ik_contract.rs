@@ -9,8 +9,8 @@
 //! - *box*: positions and yaws drawn uniformly in a box in front of the base. These are only
 //!   claimed reachable — the test asserts that every one solves, so the claim is checked here.
 
-use lgdm_sim::arm::{ArmModel, DOF, Joints};
-use lgdm_sim::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
+use lgdm_sim::robot::arm::{ArmModel, DOF, Joints};
+use lgdm_sim::robot::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -8,9 +8,10 @@ use std::path::Path;
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
-use lgdm_sim::object_sets::{LayoutError, ObjectSet, PAPER_OBJECTS, lay_out};
-use lgdm_sim::shapes::LibraryShapes;
-use lgdm_sim::world::{World, WorldConfig};
+use lgdm_sim::datagen::object_sets::{LayoutError, ObjectSet, PAPER_OBJECTS, lay_out};
+use lgdm_sim::physics::config::WorldConfig;
+use lgdm_sim::physics::shapes::LibraryShapes;
+use lgdm_sim::physics::world::World;
 
 /// A binary STL of `mesh`.
 fn stl(path: &Path, mesh: &Mesh) {

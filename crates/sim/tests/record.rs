@@ -11,12 +11,12 @@ use std::collections::BTreeMap;
 
 use foxglove::messages::{CameraCalibration, FrameTransforms, Log, RawImage, SceneUpdate};
 use lgdm_pointcloud::objects::{ObjectModel, procedural_library};
-use lgdm_sim::record::RoundRecorder;
-use lgdm_sim::record::{RecordConfig, RoundRecording};
-use lgdm_sim::results::RunResults;
-use lgdm_sim::runner::run_trials;
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::spec::{RunSpec, builtin_source};
+use lgdm_sim::grasping::source::builtin_source;
+use lgdm_sim::run::record::{RecordConfig, RoundRecorder, RoundRecording};
+use lgdm_sim::run::results::RunResults;
+use lgdm_sim::run::runner::run_trials;
+use lgdm_sim::run::spec::RunSpec;
+use lgdm_sim::tasks::scenario::Scenario;
 use prost::Message as _;
 
 fn library() -> Vec<ObjectModel> {
@@ -37,19 +37,19 @@ fn recorded(rounds: usize, seed: u64) -> (RunResults, Vec<RoundRecording>) {
 fn run_recorded(
     spec: &RunSpec,
     library: &[lgdm_pointcloud::objects::ObjectModel],
-    source: &mut dyn lgdm_sim::source::GraspSource,
+    source: &mut dyn lgdm_sim::grasping::source::GraspSource,
     config: &RecordConfig,
     sink: &mut Vec<RoundRecording>,
-) -> Result<RunResults, lgdm_sim::spec::SimError> {
+) -> Result<RunResults, lgdm_sim::run::error::SimError> {
     let mut recorder = RoundRecorder::new(config, sink, spec.config.cameras.clone())?;
     run_trials(spec, library, source, &mut recorder, |_| {})
 }
 
 /// The attempts without their wall-clock times.
-fn deterministic(r: &RunResults) -> Vec<lgdm_sim::results::AttemptRecord> {
+fn deterministic(r: &RunResults) -> Vec<lgdm_sim::run::results::AttemptRecord> {
     r.attempts
         .iter()
-        .map(|a| lgdm_sim::results::AttemptRecord {
+        .map(|a| lgdm_sim::run::results::AttemptRecord {
             wall: Default::default(),
             ..a.clone()
         })
@@ -309,7 +309,9 @@ fn first_rounds_limits_what_is_recorded() {
 /// true and guessed labels as metadata, deleted when the object goes.
 #[test]
 fn pick_place_recordings_label_every_recognised_object() {
-    use lgdm_sim::recognize::{Labels, RecognitionConfig, Recognizer};
+    use lgdm_sim::recognition::config::RecognitionConfig;
+    use lgdm_sim::recognition::labels::Labels;
+    use lgdm_sim::recognition::recognizer::Recognizer;
     let library = library();
     let spec = RunSpec::new(Scenario::Isolated, 3, 0);
     let mut source = builtin_source("analytic", 0).unwrap();
@@ -322,7 +324,7 @@ fn pick_place_recordings_label_every_recognised_object() {
     let mut sink: Vec<RoundRecording> = Vec::new();
     let config = RecordConfig::default();
     let mut recorder = RoundRecorder::new(&config, &mut sink, spec.config.cameras.clone()).unwrap();
-    let results = lgdm_sim::runner::run_pick_place(
+    let results = lgdm_sim::run::runner::run_pick_place(
         &spec,
         &library,
         source.as_mut(),

@@ -6,14 +6,14 @@
 
 use std::path::{Path, PathBuf};
 
-use lgdm_sim::job::{
+use lgdm_sim::grasping::source::builtin_source;
+use lgdm_sim::recognition::encoder::GoodEncoder;
+use lgdm_sim::run::job::{
     GraspJob, GraspSetup, JobKind, JobRecord, Output, PickPlaceJob, PickPlaceSetup,
 };
-use lgdm_sim::recognize::GoodEncoder;
-use lgdm_sim::record::RecordConfig;
-use lgdm_sim::run_dir::{PROGRESS_DIR, PROGRESS_FILE};
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::spec::builtin_source;
+use lgdm_sim::run::record::RecordConfig;
+use lgdm_sim::run::run_dir::{PROGRESS_DIR, PROGRESS_FILE};
+use lgdm_sim::tasks::scenario::Scenario;
 
 /// `value` without the wall-clock fields (every key named `wall`).
 fn without_wall(value: &mut serde_json::Value) {

@@ -4,12 +4,15 @@
 //! Colliders are single hulls here so that each case stays fast; the decomposition is covered
 //! by `setups.rs`.
 
-use lgdm_sim::config::SimConfig;
-use lgdm_sim::job::{GraspJob, GraspSetup, ObjectSource, PickPlaceJob, PickPlaceSetup};
-use lgdm_sim::recognize::{RecognitionConfig, RecognitionError};
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::shapes::ObjectShape;
-use lgdm_sim::spec::{MAX_ATTEMPTS, MAX_ROUNDS, SimError};
+use lgdm_sim::physics::shapes::ObjectShape;
+use lgdm_sim::recognition::config::RecognitionConfig;
+use lgdm_sim::recognition::error::RecognitionError;
+use lgdm_sim::run::config::SimConfig;
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::{GraspJob, GraspSetup, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::run::objects::ObjectSource;
+use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS};
+use lgdm_sim::tasks::scenario::Scenario;
 use proptest::prelude::*;
 
 /// The settings a refusal may name (the binary's options, without the dashes).

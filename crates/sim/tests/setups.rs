@@ -6,13 +6,13 @@ use std::path::Path;
 
 use lgdm_gdm::{Gdm, GdmConfig, Sample};
 use lgdm_pointcloud::cache::GOOD_DIM;
-use lgdm_sim::job::{
-    GraspJob, GraspSetup, MAX_INSTANCES, ObjectSource, Output, PickPlaceJob, PickPlaceSetup,
-};
-use lgdm_sim::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelError};
-use lgdm_sim::recognize::GoodEncoder;
-use lgdm_sim::source::AnalyticSource;
-use lgdm_sim::spec::{MAX_ATTEMPTS, MAX_ROUNDS, SimError};
+use lgdm_sim::grasping::source::AnalyticSource;
+use lgdm_sim::recognition::encoder::GoodEncoder;
+use lgdm_sim::recognition::model::{MODEL_FILE, MODEL_LABELS_FILE, ModelError};
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::{GraspJob, GraspSetup, Output, PickPlaceJob, PickPlaceSetup};
+use lgdm_sim::run::objects::{MAX_INSTANCES, ObjectSource};
+use lgdm_sim::run::spec::{MAX_ATTEMPTS, MAX_ROUNDS};
 
 /// The setting a refusal names (`SimError::Setting`), else the error's text.
 fn refused<T: std::fmt::Debug>(r: Result<T, SimError>) -> String {

@@ -2,9 +2,9 @@
 //! limits, all joints start and arrive together, the last sample is exactly the goal, straight
 //! tool moves stay on their line, and the same inputs give the same bits.
 
-use lgdm_sim::arm::{ArmModel, DOF, Joints};
-use lgdm_sim::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
-use lgdm_sim::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
+use lgdm_sim::robot::arm::{ArmModel, DOF, Joints};
+use lgdm_sim::robot::ik::{IkConfig, IkError, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
+use lgdm_sim::robot::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
 use nalgebra::{Isometry3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -1,5 +1,5 @@
 //! `lgdm sim`: the tabletop robot. Parses the options into a job of the library
-//! ([`lgdm_sim::job`]: `sim grasp` → [`GraspJob`], `sim pick-place` and `sim packing` →
+//! ([`lgdm_sim::run::job`]: `sim grasp` → [`GraspJob`], `sim pick-place` and `sim packing` →
 //! [`PickPlaceJob`]), loads the grasp source and the view encoder it names (the autoencoder's
 //! from `lgdm_pybridge::ae::robot` in a build with the `ae` feature), runs it with a progress
 //! bar and prints its summary.
@@ -20,19 +20,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use lgdm_pointcloud::import::MeshUnits;
-use lgdm_sim::config::{ConfigOverrides, SimConfig};
-use lgdm_sim::job::{
-    GraspJob, GraspSetup, JobKind, JobRecord, ObjectLibrary, ObjectSource, Output, PickPlaceJob,
-    PickPlaceSetup,
-};
-use lgdm_sim::recognize::{GoodEncoder, RecognitionConfig, ViewEncoder};
-use lgdm_sim::record::RecordConfig;
-use lgdm_sim::report::summary_text;
-use lgdm_sim::results::RunResults;
-use lgdm_sim::run_dir::ROUNDS_DIR;
-use lgdm_sim::source::GraspSource;
-use lgdm_sim::spec::{SimError, StopToken, builtin_source};
+use lgdm_sim::run::error::SimError;
+use lgdm_sim::run::job::{GraspJob, GraspSetup, JobKind, PickPlaceJob, StopToken};
+use lgdm_sim::run::objects::ObjectSource;
+use lgdm_sim::run::report::summary_text;
+use lgdm_sim::run::results::RunResults;
+use lgdm_sim::run::run_dir::ROUNDS_DIR;
 
 use crate::data::Encoder;
 use crate::output::outln;
@@ -41,7 +34,14 @@ use crate::progress::{ProgressMode, Reporter};
 mod args;
 mod grasp_data;
 mod objects;
+mod setup;
+mod sources;
 pub use args::*;
+use setup::{
+    new_pick_place, objects, output, record_config, recorded_grasp, report_meshes, resumed,
+    sim_config,
+};
+use sources::{source, view_encoder};
 
 /// Runs `lgdm sim`.
 pub fn run(args: Args) -> Result<()> {
@@ -64,184 +64,6 @@ fn cli_error(e: SimError) -> anyhow::Error {
         } => anyhow::anyhow!("--{name} {value}: {reason}"),
         other => other.into(),
     }
-}
-
-/// Why `--grasp network` cannot run in a build without the `ae` feature, and what to do.
-#[cfg_attr(feature = "ae", allow(dead_code))]
-pub const NETWORK_NOT_BUILT: &str = "--grasp network needs the torch grasp autoencoder, and this \
-`lgdm` binary was built without the `ae` feature (the default build neither links libpython nor \
-needs torch). Rebuild it with `cargo build --release -p lgdm-cli --features ae`, and install torch \
-and the autoencoder package into a venv: `python3 -m venv ~/.cache/lgdm/venv && \
-~/.cache/lgdm/venv/bin/pip install -e python/train_ae` (or activate your own venv, or set \
-LGDM_VENV to it); see the README, \"Grasp network\". Or use --grasp analytic or --grasp random";
-
-/// The grasp source `grasp`, loaded once for the whole run. `ae_encoder`: whether recognition
-/// uses the autoencoder (then `--ae-checkpoint` applies without `--grasp network`); `None` for
-/// commands without recognition.
-fn source(
-    grasp: GraspArg,
-    ae_checkpoint: Option<&Path>,
-    seed: u64,
-    ae_encoder: Option<bool>,
-    reporter: &Reporter,
-) -> Result<Box<dyn GraspSource>> {
-    if let (Some(p), false) = (
-        ae_checkpoint,
-        grasp == GraspArg::Network || ae_encoder == Some(true),
-    ) {
-        let also = if ae_encoder.is_some() {
-            " and --encoder ae"
-        } else {
-            ""
-        };
-        bail!(
-            "--ae-checkpoint {} only applies to --grasp network{also}",
-            p.display()
-        );
-    }
-    match grasp {
-        GraspArg::Analytic => Ok(builtin_source("analytic", seed)?),
-        GraspArg::Random => Ok(builtin_source("random", seed)?),
-        GraspArg::Network => network_source(ae_checkpoint, reporter),
-    }
-}
-
-#[cfg(not(feature = "ae"))]
-fn network_source(_: Option<&std::path::Path>, _: &Reporter) -> Result<Box<dyn GraspSource>> {
-    bail!(NETWORK_NOT_BUILT)
-}
-
-/// The grasp autoencoder (`lgdm_pybridge::ae::robot::NetworkSource`) from `checkpoint`, else
-/// the one shipped with train_ae; a missing venv, module or checkpoint is an error naming it.
-#[cfg(feature = "ae")]
-fn network_source(
-    checkpoint: Option<&std::path::Path>,
-    reporter: &Reporter,
-) -> Result<Box<dyn GraspSource>> {
-    use crate::data::ae::{bridge_error, resolve_checkpoint};
-    use lgdm_pybridge::ae::robot::NetworkSource;
-    const USER: &str = "--grasp network";
-    let checkpoint = resolve_checkpoint(checkpoint, USER)?;
-    let source = NetworkSource::load(&checkpoint).map_err(|e| bridge_error(e, USER))?;
-    reporter.message(&source.describe());
-    Ok(Box::new(source))
-}
-
-/// The view encoder: GOOD, or with `ae` the autoencoder (from `checkpoint`).
-fn view_encoder(
-    ae: bool,
-    checkpoint: Option<&Path>,
-    reporter: &Reporter,
-) -> Result<Box<dyn ViewEncoder>> {
-    match ae {
-        false => Ok(Box::new(GoodEncoder)),
-        true => ae_view_encoder(checkpoint, reporter),
-    }
-}
-
-#[cfg(not(feature = "ae"))]
-fn ae_view_encoder(_: Option<&std::path::Path>, _: &Reporter) -> Result<Box<dyn ViewEncoder>> {
-    bail!(crate::data::ae::NOT_BUILT)
-}
-
-/// The autoencoder as recognition's encoder (`lgdm_pybridge::ae::robot::AeViewEncoder`).
-#[cfg(feature = "ae")]
-fn ae_view_encoder(
-    checkpoint: Option<&std::path::Path>,
-    reporter: &Reporter,
-) -> Result<Box<dyn ViewEncoder>> {
-    use crate::data::ae::{bridge_error, resolve_checkpoint};
-    use lgdm_pybridge::ae::robot::AeViewEncoder;
-    const USER: &str = "--encoder ae";
-    let checkpoint = resolve_checkpoint(checkpoint, USER)?;
-    let encoder = AeViewEncoder::load(&checkpoint).map_err(|e| bridge_error(e, USER))?;
-    let from = checkpoint.display();
-    reporter.message(&format!("recognition: autoencoder features from {from}"));
-    Ok(Box::new(encoder))
-}
-
-/// The objects of `--meshes` (with `--units`), else the procedural ones.
-fn objects(args: &RobotArgs, procedural: ObjectSource) -> Result<ObjectSource> {
-    mesh_objects(args.meshes.as_ref(), &args.units, procedural)
-}
-
-/// The objects of `meshes` (with `units`), else `procedural`.
-fn mesh_objects(
-    meshes: Option<&std::path::PathBuf>,
-    units: &[String],
-    procedural: ObjectSource,
-) -> Result<ObjectSource> {
-    let Some(dir) = meshes else {
-        return Ok(procedural);
-    };
-    let units = MeshUnits::parse(units).map_err(|reason| anyhow::anyhow!("--units: {reason}"))?;
-    Ok(ObjectSource::Meshes {
-        dir: dir.clone(),
-        units,
-    })
-}
-
-/// Each imported mesh's unit and size, with a warning for one that is not household-sized.
-fn report_meshes(library: &ObjectLibrary, reporter: &Reporter) {
-    for report in &library.imported {
-        let warning = if report.is_plausible() {
-            ""
-        } else {
-            " (not the 2 cm to 60 cm of a household object: check --units)"
-        };
-        reporter.message(&format!(
-            "mesh {}: {}{warning}",
-            report.file,
-            report.describe()
-        ));
-    }
-}
-
-/// The run's constants: `--config`'s file (else the defaults), with what the options set — the
-/// gripper, the cameras' drawing, the colliders — on top. Checked whole, naming the field.
-fn sim_config(args: &RobotArgs) -> Result<SimConfig> {
-    let overrides = ConfigOverrides {
-        gripper: args.gripper,
-        draw: args.draw,
-        shapes: args.shapes,
-        proposal_check: args.proposal_check,
-    };
-    resolve_config(args.config.as_deref(), args.out.as_deref(), &overrides)
-}
-
-/// `config` (else the defaults) with `overrides` on top, refused inside `out`.
-fn resolve_config(
-    config: Option<&Path>,
-    out: Option<&Path>,
-    overrides: &ConfigOverrides,
-) -> Result<SimConfig> {
-    if let (Some(config), Some(out)) = (config, out)
-        && let (Ok(config), Ok(out)) = (config.canonicalize(), out.canonicalize())
-        && config.starts_with(&out)
-    {
-        bail!(
-            "--config {} is inside --out {}: a run does not write over its inputs; copy it out \
-             first",
-            config.display(),
-            out.display()
-        );
-    }
-    SimConfig::resolve(config, overrides).map_err(|e| anyhow::anyhow!("--config {e}"))
-}
-
-/// `--record` / `--record-rounds`.
-fn record_config(args: &RobotArgs) -> Option<RecordConfig> {
-    (args.record || args.record_rounds.is_some()).then(|| RecordConfig {
-        first_rounds: args.record_rounds,
-        ..RecordConfig::default()
-    })
-}
-
-fn output(args: &RobotArgs) -> Option<Output> {
-    args.out.clone().map(|dir| Output {
-        dir,
-        force: args.force,
-    })
 }
 
 /// A robot run stopped by Ctrl-C after a whole round: its run directory holds the finished
@@ -298,22 +120,6 @@ fn run_error(e: SimError, command: &'static str, out: &Path, context: &str) -> a
 /// The progress line said once a Ctrl-C has asked the run to stop.
 const STOPPING: &str = "Ctrl-C: stopping after this round (whole rounds stay in the run \
                         directory; Ctrl-C again quits at once)";
-
-/// The grasp source a resumed run's record names.
-fn recorded_grasp(name: &str) -> Result<GraspArg> {
-    match name {
-        "analytic" => Ok(GraspArg::Analytic),
-        "random" => Ok(GraspArg::Random),
-        "network" => Ok(GraspArg::Network),
-        other => bail!("the run's record names an unknown grasp source `{other}`"),
-    }
-}
-
-/// The job record of the run `--resume` names, with its setup pointed at that directory.
-fn resumed(dir: &Path) -> Result<(JobRecord, Output)> {
-    let record = JobRecord::read(dir).map_err(cli_error)?;
-    Ok((record, Output::new(dir)))
-}
 
 fn grasp(args: GraspArgs) -> Result<()> {
     let robot = &args.robot;
@@ -477,41 +283,6 @@ fn recognition_run(args: PickPlaceArgs, targets: Option<Vec<String>>) -> Result<
         "seconds": started.elapsed().as_secs_f64(),
     }));
     print_end(robot.progress, &out, recorded, &results)
-}
-
-/// The setup of a new pick-place or packing run from its options.
-fn new_pick_place(args: &PickPlaceArgs, targets: Option<Vec<String>>) -> Result<PickPlaceSetup> {
-    let robot = &args.robot;
-    let procedural = ObjectSource::Procedural {
-        instances: 5,
-        seed: args.object_seed,
-    };
-    let encoder_dim = match args.encoder {
-        Encoder::Good => GoodEncoder.dim(),
-        Encoder::Ae => crate::data::ae::FEATURE_DIM,
-    };
-    Ok(PickPlaceSetup {
-        scenario: args.scenario.into(),
-        rounds: args.rounds,
-        attempts: args.attempts,
-        seed: args.seed,
-        objects: objects(robot, procedural)?,
-        set_size: args.objects,
-        model: args.model.clone(),
-        recognition: RecognitionConfig {
-            replay: !args.no_replay,
-            learn_known: args.learn_always,
-            confidence_threshold: args.confidence,
-            ..RecognitionConfig::default()
-        },
-        encoder: (args.encoder.name().to_string(), encoder_dim),
-        targets,
-        arrive_after: args.arrive_after,
-        config: sim_config(robot)?,
-        record: record_config(robot),
-        out: output(robot),
-        ae_checkpoint: robot.ae_checkpoint.clone(),
-    })
 }
 
 /// The end of a run on the terminal (not with `--progress jsonl`): the summary, where the

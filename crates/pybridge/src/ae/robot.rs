@@ -14,7 +14,7 @@
 //! It lives in the bridge, behind the `ae` feature: `lgdm-sim` (the traits) never needs torch,
 //! and any library or Python caller can run network grasps. The work itself is in
 //! [`super::grasps`]; these adapters keep the bridge's errors as the sources of the sim's
-//! ([`SourceError::Failed`], [`lgdm_sim::recognize::RecognitionError::Encoder`]).
+//! ([`SourceError::Failed`], [`lgdm_sim::recognition::error::RecognitionError::Encoder`]).
 //!
 //! ```ignore
 //! let mut source = NetworkSource::load(&checkpoint)?; // once per run
@@ -28,9 +28,8 @@ use super::{AeError, AutoEncoder, FEATURE_DIM, view_features};
 use lgdm_pointcloud::PointCloud;
 use lgdm_pointcloud::grasp::decode::DecodedGrasp;
 use lgdm_pointcloud::render::{Camera, RgbdFrame};
-use lgdm_sim::attempt::ProposalCheck;
-use lgdm_sim::recognize::{EncoderError, ViewEncoder};
-use lgdm_sim::source::{GraspQuery, GraspSource, SourceError};
+use lgdm_sim::grasping::source::{GraspQuery, GraspSource, ProposalCheck, SourceError};
+use lgdm_sim::recognition::encoder::{EncoderError, ViewEncoder};
 
 /// The grasp autoencoder behind [`GraspSource`] (`network`).
 #[derive(Debug)]

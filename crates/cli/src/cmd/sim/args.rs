@@ -5,12 +5,12 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
-use lgdm_sim::attempt::ProposalCheck;
-use lgdm_sim::camera::ObjectDrawing;
-use lgdm_sim::config::OptionValue;
-use lgdm_sim::gripper::GripperModel;
-use lgdm_sim::scenario::Scenario;
-use lgdm_sim::shapes::ObjectShape;
+use lgdm_sim::grasping::source::ProposalCheck;
+use lgdm_sim::perception::camera::ObjectDrawing;
+use lgdm_sim::physics::shapes::ObjectShape;
+use lgdm_sim::robot::gripper::GripperModel;
+use lgdm_sim::run::config::OptionValue;
+use lgdm_sim::tasks::scenario::Scenario;
 
 use crate::data::Encoder;
 use crate::progress::ProgressMode;

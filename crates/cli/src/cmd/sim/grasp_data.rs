@@ -1,14 +1,15 @@
-//! `lgdm sim grasp-data`: grasp images labelled by physics ([`lgdm_sim::grasp_data`]) — options
-//! to a job, a progress bar, the counts and the throughput at the end.
+//! `lgdm sim grasp-data`: grasp images labelled by physics ([`lgdm_sim::datagen::grasp_data`]) —
+//! options to a job, a progress bar, the counts and the throughput at the end.
 
 use std::time::Instant;
 
 use anyhow::Result;
-use lgdm_sim::config::ConfigOverrides;
-use lgdm_sim::grasp_data::{GraspDataJob, GraspDataSetup, Randomise};
-use lgdm_sim::job::ObjectSource;
+use lgdm_sim::datagen::grasp_data::{GraspDataJob, GraspDataSetup, Randomise};
+use lgdm_sim::run::config::ConfigOverrides;
+use lgdm_sim::run::objects::ObjectSource;
 
-use super::{GraspDataArgs, cli_error, mesh_objects, report_meshes, resolve_config};
+use super::setup::{mesh_objects, report_meshes, resolve_config};
+use super::{GraspDataArgs, cli_error};
 use crate::output::outln;
 use crate::progress::{ProgressMode, Reporter};
 

@@ -1,10 +1,10 @@
-//! `lgdm sim objects`: an object set laid out for `--meshes` ([`lgdm_sim::object_sets`]).
+//! `lgdm sim objects`: an object set laid out for `--meshes` ([`lgdm_sim::datagen::object_sets`]).
 
 use std::path::PathBuf;
 use std::process::Command;
 
 use anyhow::{Result, bail};
-use lgdm_sim::object_sets::{ObjectSet, PAPER_MISSING, lay_out};
+use lgdm_sim::datagen::object_sets::{ObjectSet, PAPER_MISSING, lay_out};
 
 use super::{ObjectSetArg, ObjectsArgs};
 use crate::output::outln;

