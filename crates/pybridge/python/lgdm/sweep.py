@@ -200,7 +200,7 @@ def check_spec(spec: Mapping[str, Any]) -> None:
         _check_value(f"base.{key}", value, hints.get(key), where)
     for key, values in grid.items():
         for value in values:
-            cell = ",".join(c.name for c in cells(spec) if dict(c.setting)[key] == value)
+            cell = "; ".join(c.name for c in cells(spec) if dict(c.setting)[key] == value)
             at = f"grid.{key} = {_toml(value)} (cells {cell})"
             _check_value(at, value, hints.get(key), where)
 
@@ -224,6 +224,9 @@ def _toml(value: Any) -> str:
     return json.dumps(value) if isinstance(value, str) else repr(value)
 
 
+#: What a value of a Literal's type is called in an error.
+_KIND = {str: "a string", int: "an integer", bool: "true or false", float: "a number"}
+
 #: The largest count or index a cell may pass (the Rust side's 32-bit counts).
 _MAX_INT = 2**32 - 1
 
@@ -235,7 +238,10 @@ def _expected(hint: Any) -> str | None:
         return None
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin is typing.Literal:
-        return "one of " + ", ".join(_toml(a) for a in args)
+        # The type only: a value of the right type that is not one of these fails its cells,
+        # with the function's own error, while the others run.
+        kinds = " or ".join(dict.fromkeys(_KIND.get(type(a), type(a).__name__) for a in args))
+        return f"{kinds} (one of " + ", ".join(_toml(a) for a in args) + ")"
     if origin in (typing.Union, types.UnionType):
         words = [w for a in args if a is not type(None) for w in [_expected(a)] if w]
         if any(a is not type(None) and _expected(a) is None for a in args):
@@ -257,7 +263,7 @@ def _expected(hint: Any) -> str | None:
 def _fits(value: Any, hint: Any) -> bool:
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin is typing.Literal:
-        return any(value == a and type(value) is type(a) for a in args)
+        return any(type(value) is type(a) for a in args)
     if origin in (typing.Union, types.UnionType):
         return any(
             (value is None) if a is type(None) else _fits(value, a) for a in args
