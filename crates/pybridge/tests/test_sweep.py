@@ -8,6 +8,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from test_sim import without_wall
@@ -165,6 +166,22 @@ def _cells(out: Path, name: str) -> dict[str, bytes]:
     return {c.name: (c / name).read_bytes() for c in sorted((out / "cells").glob("*"))}
 
 
+def _killed_and_resumed_equals(straight: Path, spec: Path, out: Path, mark: str, finished: str,
+                               same: Any) -> None:
+    """Kills the sweep of ``spec`` into ``out`` while a cell runs, resumes it, and compares every
+    cell's ``finished`` file (through ``same``) and the table with the straight sweep's."""
+    half = _interrupted_sweep(spec, out, mark, finished)
+    assert half, "the sweep was not caught while a cell ran"
+    done = subprocess.run(
+        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out), "--resume"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for name, text in _cells(out, finished).items():
+        assert same(json.loads(text)) == same(json.loads(_cells(straight, finished)[name])), name
+    assert (out / "table.csv").read_text() == (straight / "table.csv").read_text()
+
+
 def test_a_sweep_killed_while_a_sim_cell_runs_resumes_to_the_straight_sweep(tmp_path: Path):
     spec = tmp_path / "spec.toml"
     spec.write_text(
@@ -173,19 +190,8 @@ def test_a_sweep_killed_while_a_sim_cell_runs_resumes_to_the_straight_sweep(tmp_
     )
     straight = tmp_path / "straight"
     lgdm.sweep.run(spec, out=straight)
-    out = tmp_path / "killed"
-    half = _interrupted_sweep(spec, out, "job.json", "results.json")
-    assert half, "the sweep was not caught while a cell ran"
-    done = subprocess.run(
-        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out), "--resume"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    for name, text in _cells(out, "results.json").items():
-        assert without_wall(json.loads(text)) == without_wall(
-            json.loads(_cells(straight, "results.json")[name])
-        ), name
-    assert (out / "table.csv").read_text() == (straight / "table.csv").read_text()
+    _killed_and_resumed_equals(straight, spec, tmp_path / "killed", "job.json", "results.json",
+                               without_wall)  # fmt: skip
 
 
 def test_a_sweep_killed_while_a_train_cell_runs_resumes_to_the_straight_sweep(
@@ -204,19 +210,8 @@ def test_a_sweep_killed_while_a_train_cell_runs_resumes_to_the_straight_sweep(
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    out = tmp_path / "killed"
-    half = _interrupted_sweep(spec, out, "config.toml", "metrics.json")
-    assert half, "the sweep was not caught while a cell ran"
-    done = subprocess.run(
-        [sys.executable, "-m", "lgdm.sweep", str(spec), "--out", str(out), "--resume"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    for name, text in _cells(out, "metrics.json").items():
-        assert without_times(json.loads(text)) == without_times(
-            json.loads(_cells(straight, "metrics.json")[name])
-        ), name
-    assert (out / "table.csv").read_text() == (straight / "table.csv").read_text()
+    _killed_and_resumed_equals(straight, spec, tmp_path / "killed", "config.toml",
+                               "metrics.json", without_times)  # fmt: skip
 
 
 def test_resume_starts_afresh_a_cell_that_left_nothing_worth_resuming(tmp_path: Path):
