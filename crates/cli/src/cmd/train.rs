@@ -99,7 +99,9 @@ pub struct Args {
     #[arg(long)]
     pub train_samples: Option<usize>,
     /// Validation mode for choosing hyperparameters: the last two training collections (in
-    /// manifest order) stand in for the test set and the test collections are not touched.
+    /// manifest order) stand in for the test set and the test collections are not touched;
+    /// the instances each trial holds out are not read either, and one more instance per
+    /// category (where two are left) stands in for them.
     #[arg(long)]
     pub validate: bool,
     /// Base seed; trial t uses seed + t (default: 0).

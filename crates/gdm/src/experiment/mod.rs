@@ -264,7 +264,9 @@ pub struct Settings {
     /// sequences, stratified by category; 0 = all (default).
     pub train_samples: usize,
     /// Validation mode: the last two training collections stand in for the test set and the
-    /// test collections are not read (default: off).
+    /// test collections are not read; the instances each trial holds out for the test are not
+    /// read either, and one more instance per category (where two are left) stands in for
+    /// them (default: off).
     pub validate: bool,
 }
 
@@ -438,6 +440,7 @@ impl<'a> Experiment<'a> {
             eval_samples: self.settings.eval_samples,
             train_samples: self.settings.train_samples,
             seed: self.trial_seed(trial),
+            validate: self.settings.validate,
         }
     }
 

@@ -166,8 +166,12 @@ pub struct Plan {
     pub test: Vec<Vec<usize>>,
     /// Rows of the held-out instances (every collection), sequences in order.
     pub new_instance: Vec<Vec<usize>>,
-    /// The held-out instance ids.
+    /// The held-out instance ids (in validation mode: the validation instances).
     pub held_out_instances: Vec<u32>,
+    /// Validation mode only: the trial's test held-out instances, whose rows the plan leaves
+    /// out entirely (neither trained nor scored), so that nothing chosen on validation has seen
+    /// them. Empty otherwise.
+    pub excluded_instances: Vec<u32>,
 }
 
 /// Builds a trial's plan.
@@ -175,6 +179,12 @@ pub struct Plan {
 /// `train_collections` and `test_collections` come from the manifest's split;
 /// `category_names` gives the step labels. The RNG draws the held-out instances first, then
 /// the scenario's orders.
+///
+/// With `validate`, the held-out instances drawn first (the ones the same seed holds out for
+/// the test) are left out entirely, and a second draw among the other instances (categories
+/// with at least two left) gives the validation instances that play the held-out role; the
+/// caller passes validation collections as the test collections.
+#[allow(clippy::too_many_arguments)]
 pub fn plan(
     scenario: Scenario,
     rows: Rows<'_>,
@@ -182,10 +192,18 @@ pub fn plan(
     test_collections: &[u32],
     category_names: &[String],
     epochs: usize,
+    validate: bool,
     rng: &mut impl Rng,
 ) -> Plan {
-    let sequences = sequences_in_frame_order(rows);
-    let held_out_instances = draw_held_out_instances(rows, rng);
+    let mut sequences = sequences_in_frame_order(rows);
+    let mut held_out_instances = draw_held_out_instances(rows, &BTreeSet::new(), rng);
+    let mut excluded_instances = Vec::new();
+    if validate {
+        let excluded: BTreeSet<u32> = held_out_instances.iter().copied().collect();
+        sequences.retain(|s| !excluded.contains(&rows.instance[s[0]]));
+        held_out_instances = draw_held_out_instances(rows, &excluded, rng);
+        excluded_instances = excluded.into_iter().collect();
+    }
     let split = split_sequences(
         rows,
         &sequences,
@@ -221,6 +239,7 @@ pub fn plan(
         test: split.test,
         new_instance: split.new_instance,
         held_out_instances,
+        excluded_instances,
     }
 }
 
@@ -236,11 +255,15 @@ fn sequences_in_frame_order(rows: Rows<'_>) -> Vec<Vec<usize>> {
     by_sequence.into_values().collect()
 }
 
-/// One held-out instance per category with at least two instances (categories in id order,
-/// drawn uniformly among the category's instance ids).
-fn draw_held_out_instances(rows: Rows<'_>, rng: &mut impl Rng) -> Vec<u32> {
+/// One held-out instance per category with at least two instances besides `excluded`
+/// (categories in id order, drawn uniformly among the category's other instance ids).
+fn draw_held_out_instances(
+    rows: Rows<'_>,
+    excluded: &BTreeSet<u32>,
+    rng: &mut impl Rng,
+) -> Vec<u32> {
     let mut instances_of: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
-    for i in 0..rows.len() {
+    for i in (0..rows.len()).filter(|&i| !excluded.contains(&rows.instance[i])) {
         instances_of
             .entry(rows.category[i])
             .or_default()
@@ -521,6 +544,10 @@ mod tests {
     }
 
     fn build(s: Scenario, seed: u64) -> (Fixture, Plan) {
+        build_with(s, seed, false)
+    }
+
+    fn build_with(s: Scenario, seed: u64, validate: bool) -> (Fixture, Plan) {
         let f = fixture();
         let names: Vec<String> = (0..10).map(|c| format!("c{c}")).collect();
         let train: Vec<u32> = (0..12).collect();
@@ -532,6 +559,7 @@ mod tests {
             &test,
             &names,
             3,
+            validate,
             &mut ChaCha8Rng::seed_from_u64(seed),
         );
         (f, p)
@@ -542,6 +570,40 @@ mod tests {
             .iter()
             .flat_map(|s| s.sequences.iter().cloned())
             .collect()
+    }
+
+    #[test]
+    fn validation_never_reads_the_test_held_out_instances_and_holds_out_others() {
+        for scenario in Scenario::ALL {
+            for seed in 0..4 {
+                let (_, normal) = build(scenario, seed);
+                let (f, p) = build_with(scenario, seed, true);
+                assert!(normal.excluded_instances.is_empty());
+                // The instances the same seed holds out for the test are left out entirely.
+                assert_eq!(p.excluded_instances, normal.held_out_instances);
+                let excluded: BTreeSet<u32> = p.excluded_instances.iter().copied().collect();
+                let every = p
+                    .steps
+                    .iter()
+                    .flat_map(|s| &s.sequences)
+                    .chain(&p.test)
+                    .chain(&p.new_instance);
+                for seq in every {
+                    for &r in seq {
+                        assert!(!excluded.contains(&f.instance[r]), "{scenario:?} {seed}");
+                    }
+                }
+                // One validation instance per category, none of them a test one.
+                assert_eq!(p.held_out_instances.len(), 10);
+                let cats: BTreeSet<u32> = p.held_out_instances.iter().map(|i| i / 3).collect();
+                assert_eq!(cats.len(), 10);
+                assert!(p.held_out_instances.iter().all(|i| !excluded.contains(i)));
+                assert!(!p.new_instance.is_empty());
+                for seq in &p.new_instance {
+                    assert!(p.held_out_instances.contains(&f.instance[seq[0]]));
+                }
+            }
+        }
     }
 
     #[test]

@@ -35,6 +35,8 @@ pub(crate) struct TrialSettings {
     pub train_samples: usize,
     /// Trial seed: plan, held-out instances and the network's RNG.
     pub seed: u64,
+    /// Validation mode: the test held-out instances are left out and others stand in for them.
+    pub validate: bool,
 }
 
 /// Whole sequences holding at most `max_samples` samples, drawn at random (seeded) and kept in
@@ -69,6 +71,7 @@ pub(crate) fn plan_trial(data: &Table<'_>, s: &TrialSettings) -> Plan {
         data.test_collections,
         data.category_names,
         s.epochs,
+        s.validate,
         &mut rng,
     );
     if s.scenario == Scenario::Batch
