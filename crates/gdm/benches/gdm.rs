@@ -13,7 +13,13 @@
 //! (like a turntable stream); "uniform" = i.i.d. uniform vectors, the worst case for the
 //! early-abandoning search because all distances are alike.
 //!
-//! Run: `cargo bench -p lgdm-gdm` (one core is used).
+//! `gdm_790` is issue 42's cost check: the paper's network size (790 G-EM nodes, D = 256,
+//! K = 2; clustered and uniform data) with a training step of one memory, and training and inference of the
+//! dual model, per sample (the dual benches run batches of 200 samples; criterion's time is per
+//! batch, so per sample = time / 200, or 1 / the reported throughput).
+//!
+//! Run: `cargo bench -p lgdm-gdm` (one core is used); `cargo bench -p lgdm-gdm -- 790` runs the
+//! 790-node group only (the other groups' networks are then not grown).
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -203,7 +209,125 @@ fn bench_replay(group: &mut BenchmarkGroup<'_, WallTime>, name: &str, nodes: usi
     group.sample_size(20);
 }
 
+/// The positional filter criterion was given (`cargo bench -- FILTER`), if any.
+fn filter() -> Option<String> {
+    let mut args = std::env::args().skip(1);
+    let mut found = None;
+    while let Some(a) = args.next() {
+        if a == "--bench" || a.starts_with("--") && a.contains('=') {
+            continue;
+        }
+        if a.starts_with('-') {
+            // Options with a value (`--save-baseline X`, ...): skip the value too, unless it
+            // is a flag-only option criterion knows.
+            if !matches!(
+                a.as_str(),
+                "--list" | "--quiet" | "--verbose" | "--noplot" | "--exact"
+            ) {
+                args.next();
+            }
+            continue;
+        }
+        found = Some(a);
+    }
+    found
+}
+
+/// False if a filter is given that matches none of the group's benchmark ids (so that the group
+/// does not grow its networks for nothing).
+fn wanted(ids: &[&str]) -> bool {
+    filter().is_none_or(|f| ids.iter().any(|id| id.contains(f.as_str())))
+}
+
+/// Issue 42's cost check at the paper's size: 790 G-EM nodes, D = 256, K = 2, on clustered
+/// data and on uniform data (the early-abandoning search's worst case).
+fn bench_790(c: &mut Criterion) {
+    const NODES: usize = 790;
+    let mut group = c.benchmark_group("gdm_790");
+    group
+        .sample_size(30)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    for (name, data) in [
+        ("clustered", clustered(2 * NODES + 2200, 7)),
+        ("uniform", uniform(2 * NODES + 2200, 8)),
+    ] {
+        let id = |what: &str| format!("{what}_{name}");
+        let ids = [
+            "train_step_episodic",
+            "predict_per_200",
+            "train_dual_per_200",
+        ]
+        .map(|w| format!("gdm_790/{}/{NODES}", id(w)));
+        if !wanted(&ids.iter().map(String::as_str).collect::<Vec<_>>()) {
+            continue;
+        }
+        let (grow, stream) = data.split(2 * NODES + 200);
+
+        let mut net = grown_episodic(NODES, &grow);
+        assert_eq!(
+            net.len(),
+            NODES,
+            "the episodic network did not reach its cap"
+        );
+        let mut i = 0;
+        group.throughput(Throughput::Elements(1));
+        group.bench_function(BenchmarkId::new(id("train_step_episodic"), NODES), |b| {
+            b.iter(|| {
+                if i % VIEWS == 0 {
+                    net.begin_sequence();
+                }
+                let k = i % stream.xs.len();
+                let out = net
+                    .train_step(
+                        &stream.xs[k],
+                        &[Some(stream.label[k])],
+                        Supervision::Unsupervised,
+                    )
+                    .unwrap();
+                i += 1;
+                black_box(out)
+            })
+        });
+
+        let mut gdm = grown_gdm(NODES, &grow);
+        assert_eq!(
+            gdm.episodic().len(),
+            NODES,
+            "the G-EM did not reach its cap"
+        );
+        eprintln!(
+            "gdm_790 ({name}): {} episodic / {} semantic nodes",
+            gdm.episodic().len(),
+            gdm.semantic().len()
+        );
+        let samples = stream.samples();
+        let batch = &samples[..200];
+        group.throughput(Throughput::Elements(batch.len() as u64));
+        group.bench_function(BenchmarkId::new(id("predict_per_200"), NODES), |b| {
+            b.iter(|| black_box(gdm.predict(batch, PredictOptions::default()).unwrap()))
+        });
+        group.bench_function(BenchmarkId::new(id("train_dual_per_200"), NODES), |b| {
+            b.iter(|| black_box(gdm.train(batch).unwrap()))
+        });
+    }
+    group.finish();
+}
+
 fn bench(c: &mut Criterion) {
+    if !wanted(&[
+        "gdm/train_step_episodic/1000",
+        "gdm/train_step_episodic/5000",
+        "gdm/predict_clustered/1000",
+        "gdm/predict_clustered/5000",
+        "gdm/train_dual_clustered/1000",
+        "gdm/train_dual_clustered/5000",
+        "gdm/replay_clustered/1000",
+        "gdm/replay_histograms/1000",
+        "gdm/predict_uniform/5000",
+    ]) {
+        return;
+    }
     let mut group = c.benchmark_group("gdm");
     group
         .sample_size(20)
@@ -289,5 +413,5 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, bench_790, bench);
 criterion_main!(benches);

@@ -5,13 +5,14 @@
 //! | bytes | content |
 //! |---|---|
 //! | 8 | magic `LGDMCKPT` |
-//! | 4 | format version (u32, currently 1) |
+//! | 4 | format version (u32, currently 2; version 1 is still read) |
 //! | 8 | payload length in bytes (u64) |
 //! | 4 | CRC-32 (IEEE) of the payload (u32) |
 //! | … | payload |
 //!
 //! Payload: the config as JSON (u64 length + UTF-8), `dim` (u64), the training sequence state
-//! (u8 flag + u64 id), the replay counter (u64), then the episodic and the semantic network.
+//! (u8 flag + u64 id), the replay counter (u64), the samples learnt since the last replay (u64;
+//! not in version 1, where it reads as 0), then the episodic and the semantic network.
 //! A network is: node count, dim, depth K+1 and label levels (u64 each); the n·(K+1)·D weight
 //! floats (f32); n habituations (f32); per node its edges (u32 count, then u32 target + u32 age
 //! each); per node its synapses (u32 count, then u32 target + u32 count each); per level and
@@ -51,8 +52,11 @@ use crate::network::{ContextState, Edge, GammaGwr, Histogram};
 
 /// First bytes of every checkpoint.
 pub const MAGIC: [u8; 8] = *b"LGDMCKPT";
-/// Format version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// Format version this build writes (it also reads [`OLDEST_VERSION`] and later).
+pub const VERSION: u32 = 2;
+/// Oldest format version this build reads: version 1 lacks the samples learnt since the last
+/// replay (read as 0).
+pub const OLDEST_VERSION: u32 = 1;
 /// Bytes before the payload: magic, version, payload length, checksum.
 pub const HEADER_LEN: usize = 8 + 4 + 8 + 4;
 
@@ -349,6 +353,7 @@ impl Gdm {
             }
         }
         p.u64(self.replays);
+        p.u64(self.learnt);
         write_network(&mut p, &self.episodic.net);
         write_network(&mut p, &self.semantic.net);
         let payload = p.0;
@@ -384,7 +389,7 @@ impl Gdm {
             });
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-        if version != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(CheckpointError::Version {
                 found: version,
                 supported: VERSION,
@@ -445,6 +450,7 @@ impl Gdm {
             )));
         }
         let replays = r.u64()?;
+        let learnt = if version >= 2 { r.u64()? } else { 0 };
         let fresh = Gdm::new(config, dim).map_err(|e| corrupt(e.to_string()))?;
         let episodic = read_network(&mut r, fresh.episodic.net, "episodic")?;
         let semantic = read_network(&mut r, fresh.semantic.net, "semantic")?;
@@ -461,6 +467,7 @@ impl Gdm {
             semantic: SemanticMemory { net: semantic },
             sequence: has_sequence.then_some(sequence),
             replays,
+            learnt,
         })
     }
 

@@ -42,6 +42,10 @@ pub const MAX_NODES: usize = 10_000_000;
 /// 22 s at 30, 157 s at 300; 10,000 would take over an hour). An RNAT reproduces the temporal
 /// context of K + 1 consecutive samples; longer chains replay the same loops again.
 pub const MAX_CHAIN_LENGTH: usize = MAX_CONTEXT_DEPTH + 1;
+/// Largest replay budget ([`ReplayBudget::Learnt`]): 1000 pseudo-samples per sample learnt.
+/// A budget replays every chain (as `"all"` does) once it exceeds (K+1) × nodes / samples
+/// learnt, a few per sample in the paper's scenarios; a larger number is a mistake.
+pub const MAX_REPLAY_BUDGET: f32 = 1000.0;
 /// Most label levels of one network ([`GammaGwr::new`](crate::GammaGwr::new); the memories
 /// use 1 and 2).
 pub const MAX_LEVELS: usize = 64;
@@ -246,17 +250,93 @@ pub(crate) fn default_alphas(depth: usize) -> Vec<f32> {
     raw.iter().map(|v| (v / sum) as f32).collect()
 }
 
+/// How many chains one replay replays (`replay.budget`).
+///
+/// In a config file: `budget = "all"` or `budget = 1.0` (a number of pseudo-samples per
+/// sample learnt).
+///
+/// ```
+/// use lgdm_gdm::{GdmConfig, config::ReplayBudget};
+/// let c: GdmConfig = toml::from_str("[replay]\nbudget = 1.0\n").unwrap();
+/// assert_eq!(c.replay.budget, ReplayBudget::Learnt(1.0));
+/// let c: GdmConfig = toml::from_str("[replay]\nbudget = \"all\"\n").unwrap();
+/// assert_eq!(c.replay.budget, ReplayBudget::All);
+/// let c: GdmConfig = toml::from_str("[replay]\nbudget = 0\n").unwrap();
+/// assert_eq!(c.validate().unwrap_err().field(), Some("replay.budget"));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum ReplayBudget {
+    /// The paper's replay: one chain from every episodic node (about (K+1) × nodes
+    /// pseudo-samples, whatever the episode learnt).
+    #[default]
+    All,
+    /// At most this many pseudo-samples per training sample since the last replay (rounded
+    /// up; the last chain is replayed whole): chains start at episodic nodes drawn without
+    /// replacement with the config's seed, until the budget is spent or every node has had its
+    /// chain. A pseudo-sample costs about one training sample, so 1.0 keeps a replay within
+    /// about the learning time of its episode. Finite, > 0 and at most [`MAX_REPLAY_BUDGET`].
+    Learnt(f32),
+}
+
+impl Serialize for ReplayBudget {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match *self {
+            ReplayBudget::All => serializer.serialize_str("all"),
+            ReplayBudget::Learnt(f) => serializer.serialize_f32(f),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ReplayBudget {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = ReplayBudget;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(
+                    "replay.budget: \"all\" or a number of pseudo-samples per sample learnt",
+                )
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ReplayBudget, E> {
+                if v.eq_ignore_ascii_case("all") {
+                    Ok(ReplayBudget::All)
+                } else {
+                    Err(E::custom(format!(
+                        "replay.budget: expected \"all\" or a number of pseudo-samples per \
+                         sample learnt, found \"{v}\""
+                    )))
+                }
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<ReplayBudget, E> {
+                // Out-of-range values (even beyond f32) are kept for `validate` to name.
+                Ok(ReplayBudget::Learnt(v as f32))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<ReplayBudget, E> {
+                Ok(ReplayBudget::Learnt(v as f32))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<ReplayBudget, E> {
+                Ok(ReplayBudget::Learnt(v as f32))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
 /// Intrinsic replay settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ReplayParams {
     /// Length of each RNAT chain (default: none, meaning K+1 with K the episodic
-    /// `context_depth`; at least 1, at most [`MAX_CHAIN_LENGTH`] = 10 000).
+    /// `context_depth`; at least 1, at most [`MAX_CHAIN_LENGTH`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub chain_length: Option<usize>,
     /// Replay the chains in an order shuffled with the config's seed rather than by node id
-    /// (default: true).
+    /// (default: true). Under a [`ReplayBudget::Learnt`] budget the chains are always drawn
+    /// with the seed.
     pub shuffle: bool,
+    /// How many chains one replay replays (default: `"all"`, the paper's one chain per
+    /// episodic node; see [`ReplayBudget`]).
+    pub budget: ReplayBudget,
 }
 
 impl Default for ReplayParams {
@@ -264,6 +344,7 @@ impl Default for ReplayParams {
         ReplayParams {
             chain_length: None,
             shuffle: true,
+            budget: ReplayBudget::All,
         }
     }
 }
@@ -372,6 +453,17 @@ impl GdmConfig {
                     ),
                 ));
             }
+        }
+        if let ReplayBudget::Learnt(b) = self.replay.budget
+            && !(b.is_finite() && b > 0.0 && b <= MAX_REPLAY_BUDGET)
+        {
+            return Err(ConfigError::invalid(
+                "replay.budget",
+                format!(
+                    "{b} must be \"all\" or a number of pseudo-samples per sample learnt, \
+                     finite, > 0 and at most {MAX_REPLAY_BUDGET}"
+                ),
+            ));
         }
         Ok(())
     }
@@ -587,6 +679,51 @@ mod tests {
             c.validate().unwrap_err().field(),
             Some("replay.chain_length")
         );
+    }
+
+    #[test]
+    fn replay_budget_is_all_or_a_bounded_positive_number() {
+        let parse = |text: &str| toml::from_str::<GdmConfig>(text);
+        assert_eq!(GdmConfig::default().replay.budget, ReplayBudget::All);
+        for (text, want) in [
+            ("budget = \"all\"", ReplayBudget::All),
+            ("budget = \"ALL\"", ReplayBudget::All),
+            ("budget = 1.0", ReplayBudget::Learnt(1.0)),
+            ("budget = 2", ReplayBudget::Learnt(2.0)),
+            ("budget = 0.25", ReplayBudget::Learnt(0.25)),
+        ] {
+            let c = parse(&format!("[replay]\n{text}\n")).unwrap();
+            assert_eq!(c.replay.budget, want, "{text}");
+            c.validate().unwrap();
+        }
+        for text in [
+            "budget = 0",
+            "budget = -1.0",
+            "budget = nan",
+            "budget = inf",
+            "budget = 1e9",
+            "budget = 1e300",
+        ] {
+            let c = parse(&format!("[replay]\n{text}\n")).unwrap();
+            let e = c.validate().unwrap_err();
+            assert_eq!(e.field(), Some("replay.budget"), "{text}: {e}");
+        }
+        for text in ["budget = \"some\"", "budget = true", "budget = [1]"] {
+            let e = parse(&format!("[replay]\n{text}\n")).unwrap_err();
+            assert!(e.to_string().contains("replay.budget"), "{text}: {e}");
+        }
+        let mut c = GdmConfig::default();
+        c.replay.budget = ReplayBudget::Learnt(MAX_REPLAY_BUDGET);
+        c.validate().unwrap();
+        // Both forms survive TOML and JSON.
+        for budget in [ReplayBudget::All, ReplayBudget::Learnt(0.5)] {
+            c.replay.budget = budget;
+            let back: GdmConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+            assert_eq!(back, c);
+            let back: GdmConfig =
+                serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+            assert_eq!(back, c);
+        }
     }
 
     #[test]

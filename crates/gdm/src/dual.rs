@@ -113,6 +113,9 @@ pub struct Gdm {
     pub(crate) sequence: Option<u64>,
     /// Number of [`Gdm::replay`] calls so far (seeds the replay order).
     pub(crate) replays: u64,
+    /// Samples trained on (counting every pass) since the last [`Gdm::replay`]: what a
+    /// [`ReplayBudget::Learnt`](crate::config::ReplayBudget::Learnt) budget is measured against.
+    pub(crate) learnt: u64,
 }
 
 /// Checks an input dimension: 1 ≤ `dim` ≤ [`MAX_DIM`].
@@ -170,6 +173,7 @@ impl Gdm {
             dim,
             sequence: None,
             replays: 0,
+            learnt: 0,
         })
     }
 
@@ -205,6 +209,7 @@ impl Gdm {
     /// on error the model is unchanged.
     pub fn train(&mut self, samples: &[Sample<'_>]) -> Result<TrainStats, GdmError> {
         validate_batch(samples, self.dim)?;
+        self.learnt = self.learnt.saturating_add(samples.len() as u64);
         let (mut qe_em, mut n_em, mut qe_sm, mut n_sm) = (0.0f64, 0usize, 0.0f64, 0usize);
         for s in samples {
             if self.sequence != Some(s.sequence) {

@@ -106,11 +106,12 @@ pub enum CheckpointError {
     #[error("not an lgdm checkpoint (bad magic bytes)")]
     BadMagic,
     /// The checkpoint was written by a format version this build does not read.
-    #[error("unsupported checkpoint version {found} (this build reads version {supported})")]
+    #[error("unsupported checkpoint version {found} (this build reads versions 1 to {supported})")]
     Version {
         /// Version found in the header.
         found: u32,
-        /// The version this build reads and writes.
+        /// The version this build writes (it reads it and the older ones down to
+        /// [`OLDEST_VERSION`](crate::checkpoint::OLDEST_VERSION)).
         supported: u32,
     },
     /// The data ends before the header or the declared payload does.

@@ -11,6 +11,12 @@
 //! the bound is tight from the start. All of this is exact, rounding included: it never changes
 //! which nodes are found, only the work.
 //!
+//! The build targets baseline x86-64 (SSE2), where each 8-lane step is two 4-float adds. On a
+//! CPU with AVX2 (detected at run time) the kernels and the search loop run as a second copy of
+//! the same source compiled with AVX2 enabled, one 8-float add per step: the same operations in
+//! the same order (8 independent lanes, one left-to-right reduction, no FMA), so the results are
+//! bit-identical on every CPU and only the speed differs.
+//!
 //! ```
 //! use lgdm_gdm::metric::{self, Metric};
 //! let a = [1.0, 2.0, 3.0];
@@ -74,19 +80,109 @@ impl Metric {
 
 const LANES: usize = 8;
 
+/// Which compiled copy of the kernels runs: the portable one (the build's baseline target), or
+/// on x86-64 CPUs with AVX2 the same source compiled with AVX2 enabled. Both give bit-identical
+/// results (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Kernels {
+    /// The build's baseline instruction set.
+    Portable,
+    /// AVX2; only ever made by [`Kernels::detect`] on a CPU that has it.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Kernels {
+    /// The fastest copy this CPU runs (the detection is cached by the standard library).
+    #[inline(always)]
+    pub(crate) fn detect() -> Kernels {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Kernels::Avx2;
+        }
+        Kernels::Portable
+    }
+}
+
+/// Calls `$name(args)` in the copy `$kernels` selects: the function itself, or its namesake in
+/// [`avx2`].
+macro_rules! dispatch {
+    ($kernels:expr, $name:ident($($arg:expr),* $(,)?)) => {
+        match $kernels {
+            Kernels::Portable => $name($($arg),*),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Kernels::Avx2` is only made by `Kernels::detect`, after the run-time
+            // check that this CPU has AVX2.
+            #[allow(unsafe_code)]
+            Kernels::Avx2 => unsafe { avx2::$name($($arg),*) },
+        }
+    };
+}
+
+/// The kernels and the search compiled with AVX2 enabled: each is a wrapper around the portable
+/// function (all `#[inline(always)]`), so its body is the same source, vectorised with 8-float
+/// registers. Callers must have checked that the CPU has AVX2 ([`Kernels::detect`]).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Accumulator, Matches, NodeBuffer};
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn sum_l1(a: &[f32], b: &[f32]) -> f32 {
+        super::sum_l1(a, b)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn sum_sq(a: &[f32], b: &[f32]) -> f32 {
+        super::sum_sq(a, b)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn sum_sq_w(a: &[f32], b: &[f32], w: &[f32]) -> f32 {
+        super::sum_sq_w(a, b, w)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn dot_norms(a: &[f32], b: &[f32]) -> (f32, f32, f32) {
+        super::dot_norms(a, b)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn search_monotone<A: Accumulator>(
+        acc: &A,
+        buf: &NodeBuffer<'_>,
+        query: &[f32],
+        alphas: &[f32],
+        want_second: bool,
+        seeds: &[usize],
+        query_summary: Option<&[f32]>,
+    ) -> Option<Matches> {
+        super::search_monotone(acc, buf, query, alphas, want_second, seeds, query_summary)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn search_cosine(
+        buf: &NodeBuffer<'_>,
+        query: &[f32],
+        alphas: &[f32],
+        want_second: bool,
+    ) -> Option<Matches> {
+        super::search_cosine(buf, query, alphas, want_second)
+    }
+}
+
 /// Σ|a − b|.
 pub fn manhattan(a: &[f32], b: &[f32]) -> f32 {
-    sum_l1(a, b)
+    dispatch!(Kernels::detect(), sum_l1(a, b))
 }
 
 /// √Σ(a − b)².
 pub fn euclidean(a: &[f32], b: &[f32]) -> f32 {
-    sum_sq(a, b).sqrt()
+    dispatch!(Kernels::detect(), sum_sq(a, b)).sqrt()
 }
 
 /// Σ(a − b)².
 pub fn squared_euclidean(a: &[f32], b: &[f32]) -> f32 {
-    sum_sq(a, b)
+    dispatch!(Kernels::detect(), sum_sq(a, b))
 }
 
 /// (Σ|a − b|^p)^(1/p).
@@ -96,15 +192,16 @@ pub fn minkowski(a: &[f32], b: &[f32], p: f32) -> f32 {
 
 /// 1 − a·b / (|a| |b|); 0 if both are zero vectors, 1 if exactly one is.
 pub fn cosine(a: &[f32], b: &[f32]) -> f32 {
-    let (dot, na, nb) = dot_norms(a, b);
+    let (dot, na, nb) = dispatch!(Kernels::detect(), dot_norms(a, b));
     cosine_from(dot, na, nb)
 }
 
 /// √Σ(a − b)² · inv_var, with `inv_var` the per-feature inverse variances.
 pub fn mahalanobis_diagonal(a: &[f32], b: &[f32], inv_var: &[f32]) -> f32 {
-    sum_sq_w(a, b, inv_var).sqrt()
+    dispatch!(Kernels::detect(), sum_sq_w(a, b, inv_var)).sqrt()
 }
 
+#[inline(always)]
 fn cosine_from(dot: f32, na: f32, nb: f32) -> f32 {
     if na == 0.0 && nb == 0.0 {
         0.0
@@ -516,6 +613,7 @@ fn search_monotone<A: Accumulator>(
     Some(rank.finish())
 }
 
+#[inline(always)]
 fn search_cosine(
     buf: &NodeBuffer<'_>,
     query: &[f32],
@@ -533,11 +631,11 @@ fn search_cosine(
         let node = &buf.weights[j * stride..(j + 1) * stride];
         let mut total = 0.0f32;
         for (k, &alpha) in alphas.iter().enumerate() {
-            total += alpha
-                * cosine(
-                    &query[k * dim..(k + 1) * dim],
-                    &node[k * dim..(k + 1) * dim],
-                );
+            let (dot, na, nb) = dot_norms(
+                &query[k * dim..(k + 1) * dim],
+                &node[k * dim..(k + 1) * dim],
+            );
+            total += alpha * cosine_from(dot, na, nb);
         }
         rank.offer(j, total);
     }
@@ -556,6 +654,32 @@ pub(crate) fn search(
     want_second: bool,
     seeds: &[usize],
 ) -> Option<Matches> {
+    let kernels = Kernels::detect();
+    search_with(
+        kernels,
+        metric,
+        inv_var,
+        buf,
+        query,
+        alphas,
+        want_second,
+        seeds,
+    )
+}
+
+/// [`search`] in the copy of the kernels `kernels` selects (the same result in every copy).
+#[allow(clippy::too_many_arguments)]
+fn search_with(
+    kernels: Kernels,
+    metric: Metric,
+    inv_var: &[f32],
+    buf: &NodeBuffer<'_>,
+    query: &[f32],
+    alphas: &[f32],
+    want_second: bool,
+    seeds: &[usize],
+) -> Option<Matches> {
+    let k = kernels;
     debug_assert!(alphas.len() <= buf.depth);
     debug_assert!(query.len() >= alphas.len() * buf.dim);
     let w = want_second;
@@ -573,13 +697,32 @@ pub(crate) fn search(
                 &mut heap[..]
             };
             summarise(&query[..blocks * buf.dim], buf.dim, qs);
-            search_monotone(&L1, buf, query, alphas, w, seeds, Some(qs))
+            let qs = &*qs;
+            dispatch!(
+                k,
+                search_monotone(&L1, buf, query, alphas, w, seeds, Some(qs))
+            )
         }
-        Metric::Euclidean => search_monotone(&L2, buf, query, alphas, w, seeds, None),
-        Metric::SquaredEuclidean => search_monotone(&L2Sq, buf, query, alphas, w, seeds, None),
-        Metric::Minkowski { p } => search_monotone(&Lp(p), buf, query, alphas, w, seeds, None),
-        Metric::Mahalanobis => search_monotone(&Maha(inv_var), buf, query, alphas, w, seeds, None),
-        Metric::Cosine => search_cosine(buf, query, alphas, w),
+        Metric::Euclidean => dispatch!(k, search_monotone(&L2, buf, query, alphas, w, seeds, None)),
+        Metric::SquaredEuclidean => {
+            dispatch!(
+                k,
+                search_monotone(&L2Sq, buf, query, alphas, w, seeds, None)
+            )
+        }
+        Metric::Minkowski { p } => {
+            dispatch!(
+                k,
+                search_monotone(&Lp(p), buf, query, alphas, w, seeds, None)
+            )
+        }
+        Metric::Mahalanobis => {
+            dispatch!(
+                k,
+                search_monotone(&Maha(inv_var), buf, query, alphas, w, seeds, None)
+            )
+        }
+        Metric::Cosine => dispatch!(k, search_cosine(buf, query, alphas, w)),
     }
 }
 
@@ -704,6 +847,153 @@ mod tests {
             .sum();
         assert!((manhattan(&a, &b) as f64 - l1).abs() < 1e-3 * l1);
         assert!((squared_euclidean(&a, &b) as f64 - l2).abs() < 1e-3 * l2);
+    }
+
+    /// Random floats over many magnitudes and both signs (xorshift; the test is deterministic).
+    fn wide_floats(n: usize, state: &mut u64) -> Vec<f32> {
+        (0..n)
+            .map(|_| {
+                *state ^= *state << 13;
+                *state ^= *state >> 7;
+                *state ^= *state << 17;
+                let mantissa = (*state >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
+                let exponent = ((*state >> 8) % 24) as i32 - 12;
+                mantissa * 2f32.powi(exponent)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn dispatched_kernels_are_bit_identical_to_portable_ones() {
+        let k = Kernels::detect();
+        eprintln!("kernels in use: {k:?}");
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        for len in [1, 7, 8, 9, 63, 64, 65, 256, 675, 768, 2025, 4099] {
+            for _ in 0..20 {
+                let a = wide_floats(len, &mut state);
+                let b = wide_floats(len, &mut state);
+                let w: Vec<f32> = wide_floats(len, &mut state)
+                    .iter()
+                    .map(|v| v.abs())
+                    .collect();
+                let bits = |v: f32| v.to_bits();
+                assert_eq!(
+                    bits(dispatch!(k, sum_l1(&a, &b))),
+                    bits(sum_l1(&a, &b)),
+                    "{len}"
+                );
+                assert_eq!(
+                    bits(dispatch!(k, sum_sq(&a, &b))),
+                    bits(sum_sq(&a, &b)),
+                    "{len}"
+                );
+                assert_eq!(
+                    bits(dispatch!(k, sum_sq_w(&a, &b, &w))),
+                    bits(sum_sq_w(&a, &b, &w)),
+                    "{len}"
+                );
+                let (d, x, y) = dispatch!(k, dot_norms(&a, &b));
+                let (d0, x0, y0) = dot_norms(&a, &b);
+                assert_eq!(
+                    (bits(d), bits(x), bits(y)),
+                    (bits(d0), bits(x0), bits(y0)),
+                    "{len}"
+                );
+                assert_eq!(bits(manhattan(&a, &b)), bits(sum_l1(&a, &b)));
+            }
+        }
+    }
+
+    #[test]
+    fn dispatched_search_finds_the_same_matches_as_the_portable_one() {
+        let k = Kernels::detect();
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        for (dim, n) in [(256usize, 790usize), (675, 200), (13, 300)] {
+            let depth = 3;
+            // Clustered nodes (near copies of a few centres, so that the early abandoning
+            // matters) and unrelated ones.
+            let centres = wide_floats(5 * depth * dim, &mut state);
+            let mut weights = Vec::with_capacity(n * depth * dim);
+            for j in 0..n {
+                let noise = wide_floats(depth * dim, &mut state);
+                if j % 2 == 0 {
+                    let c = &centres[(j % 5) * depth * dim..(j % 5 + 1) * depth * dim];
+                    weights.extend(c.iter().zip(&noise).map(|(c, e)| c + 1e-3 * e));
+                } else {
+                    weights.extend(noise);
+                }
+            }
+            let p = prefix_len(dim);
+            let prefix: Vec<f32> = weights
+                .chunks(depth * dim)
+                .flat_map(|node| node[..p].to_vec())
+                .collect();
+            let sl = summary_len(dim, depth);
+            let mut summary = vec![0.0; n * sl];
+            for (node, out) in weights.chunks(depth * dim).zip(summary.chunks_mut(sl)) {
+                summarise(node, dim, out);
+            }
+            let buf = NodeBuffer {
+                prefix: &prefix,
+                summary: &summary,
+                weights: &weights,
+                dim,
+                depth,
+            };
+            let iv: Vec<f32> = wide_floats(dim, &mut state)
+                .iter()
+                .map(|v| v.abs())
+                .collect();
+            for trial in 0..12 {
+                let q: Vec<f32> = if trial % 2 == 0 {
+                    let j = (trial * 37) % n;
+                    let noise = wide_floats(depth * dim, &mut state);
+                    weights[j * depth * dim..(j + 1) * depth * dim]
+                        .iter()
+                        .zip(&noise)
+                        .map(|(w, e)| w + 1e-4 * e)
+                        .collect()
+                } else {
+                    wide_floats(depth * dim, &mut state)
+                };
+                for metric in [
+                    Metric::Manhattan,
+                    Metric::Euclidean,
+                    Metric::SquaredEuclidean,
+                    Metric::Minkowski { p: 3.0 },
+                    Metric::Cosine,
+                    Metric::Mahalanobis,
+                ] {
+                    for alphas in [&[0.665f32, 0.245, 0.090][..], &[1.0][..]] {
+                        for want_second in [true, false] {
+                            let seeds = [(trial * 11) % n];
+                            let args = (metric, &iv[..], &buf, &q[..], alphas, want_second);
+                            let fast = search_with(
+                                k, args.0, args.1, args.2, args.3, args.4, args.5, &seeds,
+                            );
+                            let slow = search_with(
+                                Kernels::Portable,
+                                args.0,
+                                args.1,
+                                args.2,
+                                args.3,
+                                args.4,
+                                args.5,
+                                &seeds,
+                            );
+                            let (fast, slow) = (fast.unwrap(), slow.unwrap());
+                            assert_eq!(fast.best.0, slow.best.0, "{metric:?} {dim} {trial}");
+                            assert_eq!(fast.best.1.to_bits(), slow.best.1.to_bits());
+                            assert_eq!(
+                                fast.second.map(|(j, d)| (j, d.to_bits())),
+                                slow.second.map(|(j, d)| (j, d.to_bits())),
+                                "{metric:?} {dim} {trial}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -7,6 +7,13 @@
 //! instance and category labels, and to the semantic memory (input = the same node weights,
 //! regulated by the category labels). No stored samples are needed.
 //!
+//! By default (`replay.budget = "all"`, the paper's) every episodic node starts a chain, so a
+//! replay costs about (K+1) × nodes training steps whatever the episode learnt: on the paper
+//! preset most of a run's time. With a budget of b pseudo-samples per sample learnt
+//! ([`ReplayBudget::Learnt`]), a replay starts chains at nodes drawn without replacement with
+//! the config's seed until ⌈b × samples trained since the last replay⌉ pseudo-samples are
+//! replayed (the last chain whole), or every node has had its chain.
+//!
 //! ```
 //! use lgdm_gdm::{Gdm, GdmConfig, Sample};
 //! let mut gdm = Gdm::new(GdmConfig::default(), 1).unwrap();
@@ -24,6 +31,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
+use crate::config::ReplayBudget;
 use crate::dual::Gdm;
 use crate::error::GdmError;
 use crate::memory::{CATEGORY_LEVEL, INSTANCE_LEVEL};
@@ -32,7 +40,8 @@ use crate::network::GammaGwr;
 /// Summary of one [`Gdm::replay`] call.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct ReplayStats {
-    /// Chains replayed (one per episodic node that existed when replay started).
+    /// Chains replayed (one per episodic node that existed when replay started, unless a
+    /// [`ReplayBudget::Learnt`] budget ran out first).
     pub chains: usize,
     /// Pseudo-samples replayed (sum of chain lengths).
     pub samples: usize,
@@ -74,14 +83,21 @@ fn walk(
 
 impl Gdm {
     /// Intrinsic replay of RNATs into both memories (call after an episode, typically after
-    /// [`Gdm::end_episode`]). With `replay.shuffle` the chains are replayed in an order drawn
-    /// from the config's seed and the number of earlier replays. The next training sample
+    /// [`Gdm::end_episode`]). With `replay.shuffle`, or under a [`ReplayBudget::Learnt`]
+    /// budget, the chains are replayed in an order drawn from the config's seed and the number
+    /// of earlier replays; the budget (`replay.budget`) says how many. The next training sample
     /// starts a new sequence.
     pub fn replay(&mut self) -> Result<ReplayStats, GdmError> {
+        let learnt = std::mem::take(&mut self.learnt);
         let em = &self.episodic.net;
         if em.len() < 2 {
             return Ok(ReplayStats::default());
         }
+        let budget = match self.config.replay.budget {
+            ReplayBudget::All => usize::MAX,
+            // Validated: finite, > 0 and bounded; the product saturates in the cast.
+            ReplayBudget::Learnt(b) => (b as f64 * learnt as f64).ceil() as usize,
+        };
         let dim = self.dim;
         let n = em.len();
         let length = self.config.replay_chain_length();
@@ -102,13 +118,18 @@ impl Gdm {
         // indices stay valid.
         let mut semantic_hint: Vec<Option<usize>> = vec![None; n];
         let mut order: Vec<usize> = (0..n).collect();
-        if self.config.replay.shuffle {
+        if self.config.replay.shuffle || budget != usize::MAX {
             let seed = splitmix64(self.config.seed ^ splitmix64(self.replays));
             order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
         }
         let mut chain = Vec::with_capacity(length.min(n + 1));
         let mut total = 0usize;
+        let mut chains = 0usize;
         for &start in &order {
+            if total >= budget {
+                break;
+            }
+            chains += 1;
             walk(|j| successors[j], start, length, &mut chain);
             total += chain.len();
             self.begin_sequence();
@@ -129,7 +150,7 @@ impl Gdm {
         self.sequence = None;
         self.replays = self.replays.wrapping_add(1);
         let stats = ReplayStats {
-            chains: n,
+            chains,
             samples: total,
         };
         tracing::debug!(
@@ -140,5 +161,91 @@ impl Gdm {
             "gdm replay"
         );
         Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{GdmConfig, MAX_REPLAY_BUDGET};
+    use crate::dual::Sample;
+
+    /// 40 one-dimensional views in 4 sequences.
+    fn xs() -> Vec<[f32; 2]> {
+        (0..40)
+            .map(|i| {
+                [
+                    (i / 10) as f32 * 3.0 + 0.1 * (i % 10) as f32,
+                    0.05 * (i % 7) as f32,
+                ]
+            })
+            .collect()
+    }
+
+    fn trained(budget: ReplayBudget, seed: u64) -> (Gdm, usize) {
+        let mut config = GdmConfig {
+            seed,
+            ..GdmConfig::paper_batch()
+        };
+        config.replay.budget = budget;
+        let mut gdm = Gdm::new(config, 2).unwrap();
+        let xs = xs();
+        let samples: Vec<Sample> = xs
+            .iter()
+            .enumerate()
+            .map(|(i, x)| Sample::labelled(x, (i / 10) as u64, (i / 10) as u32, 0))
+            .collect();
+        for _ in 0..3 {
+            gdm.train(&samples).unwrap();
+        }
+        gdm.end_episode();
+        // A later, smaller episode: what the budget is measured against.
+        gdm.replay().unwrap();
+        gdm.train(&samples[..5]).unwrap();
+        let nodes = gdm.episodic().len();
+        (gdm, nodes)
+    }
+
+    #[test]
+    fn a_budget_replays_about_that_many_pseudo_samples_per_sample_learnt() {
+        let (mut all, nodes) = trained(ReplayBudget::All, 3);
+        assert!(nodes > 10, "{nodes} nodes");
+        let stats = all.replay().unwrap();
+        assert_eq!(stats.chains, nodes);
+        // Nothing learnt since: "all" still replays every chain.
+        let now = all.episodic().len();
+        assert_eq!(all.replay().unwrap().chains, now);
+
+        let (mut one, _) = trained(ReplayBudget::Learnt(1.0), 3);
+        let stats = one.replay().unwrap();
+        // 5 samples learnt: chains until 5 pseudo-samples, the last one whole.
+        assert!(stats.samples >= 5 && stats.samples < 5 + 3, "{stats:?}");
+        assert!(stats.chains < nodes);
+        // Nothing learnt since the last replay: nothing to replay.
+        assert_eq!(one.replay().unwrap(), ReplayStats::default());
+
+        let (mut half, _) = trained(ReplayBudget::Learnt(0.5), 3);
+        let stats = half.replay().unwrap();
+        assert!(stats.samples >= 3 && stats.samples < 3 + 3, "{stats:?}");
+
+        // A budget above (K+1) × nodes / learnt replays every chain.
+        let (mut big, nodes) = trained(ReplayBudget::Learnt(MAX_REPLAY_BUDGET), 3);
+        assert_eq!(big.replay().unwrap().chains, nodes);
+    }
+
+    #[test]
+    fn budgeted_chains_are_drawn_with_the_seed() {
+        let replayed = |seed: u64| {
+            let (mut gdm, _) = trained(ReplayBudget::Learnt(1.0), seed);
+            gdm.replay().unwrap();
+            gdm
+        };
+        assert_eq!(replayed(3).to_bytes(), replayed(3).to_bytes());
+        // Another seed draws other chains (the models differ from the first training on).
+        let (mut a, _) = trained(ReplayBudget::Learnt(1.0), 3);
+        let (mut b, _) = trained(ReplayBudget::Learnt(1.0), 4);
+        let (sa, sb) = (a.replay().unwrap(), b.replay().unwrap());
+        assert!(sa.chains > 0 && sb.chains > 0);
+        assert_ne!(a.to_bytes(), b.to_bytes());
     }
 }

@@ -237,3 +237,34 @@ fn current_sequence_survives_the_checkpoint() {
     gdm.replay().unwrap();
     assert_eq!(gdm.current_sequence(), None);
 }
+
+#[test]
+fn version_1_files_are_still_read_with_nothing_learnt_since_the_last_replay() {
+    // Version 2 added, after the replay counter, the samples learnt since the last replay.
+    let gdm = model(Metric::Manhattan);
+    let v2 = gdm.to_bytes();
+    let payload = &v2[HEADER_LEN..];
+    let config_len = u64::from_le_bytes(payload[..8].try_into().unwrap()) as usize;
+    // config, dim, sequence flag + id, replay counter
+    let at = 8 + config_len + 8 + 9 + 8;
+    let field = |p: &[u8]| u64::from_le_bytes(p[at..at + 8].try_into().unwrap());
+    assert_eq!(
+        field(payload),
+        15,
+        "the 15 samples trained after the last replay"
+    );
+    let mut p1 = payload[..at].to_vec();
+    p1.extend_from_slice(&payload[at + 8..]);
+    let mut v1 = b"LGDMCKPT".to_vec();
+    v1.extend_from_slice(&1u32.to_le_bytes());
+    v1.extend_from_slice(&(p1.len() as u64).to_le_bytes());
+    v1.extend_from_slice(&crc32fast::hash(&p1).to_le_bytes());
+    v1.extend_from_slice(&p1);
+    let back = Gdm::from_bytes(&v1).unwrap();
+    let again = back.to_bytes();
+    assert_eq!(&again[8..12], &VERSION.to_le_bytes());
+    let payload = &again[HEADER_LEN..];
+    assert_eq!(field(payload), 0);
+    assert_eq!(&payload[..at], &p1[..at]);
+    assert_eq!(&payload[at + 8..], &p1[at..]);
+}

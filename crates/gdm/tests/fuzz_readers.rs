@@ -17,7 +17,9 @@ use std::collections::BTreeMap;
 use std::sync::OnceLock;
 
 use lgdm_gdm::checkpoint::HEADER_LEN;
-use lgdm_gdm::config::{MAX_CHAIN_LENGTH, MAX_CONTEXT_DEPTH, MAX_DIM, MAX_NODES};
+use lgdm_gdm::config::{
+    MAX_CHAIN_LENGTH, MAX_CONTEXT_DEPTH, MAX_DIM, MAX_NODES, MAX_REPLAY_BUDGET,
+};
 use lgdm_gdm::{CheckpointError, Gdm, GdmConfig, Metric, PredictOptions, Sample};
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -233,7 +235,8 @@ fn fields(bytes: &[u8]) -> Vec<Field> {
     push("sequence flag".into(), p, 1);
     push("sequence".into(), p + 1, 8);
     push("replays".into(), p + 9, 8);
-    p += 17;
+    push("learnt since replay".into(), p + 17, 8);
+    p += 25;
     for net in ["episodic", "semantic"] {
         let (n, depth, levels) = (u64_at(p), u64_at(p + 16), u64_at(p + 24));
         for (k, what) in ["nodes", "dim", "depth", "levels"].iter().enumerate() {
@@ -452,6 +455,7 @@ fn config_edit() -> impl Strategy<Value = (Vec<&'static str>, serde_json::Value)
     use serde_json::json;
     let paths = vec![
         vec!["replay", "chain_length"],
+        vec!["replay", "budget"],
         vec!["episodic", "max_nodes"],
         vec!["semantic", "max_nodes"],
         vec!["episodic", "context_depth"],
@@ -578,6 +582,13 @@ fn embedded_configs_are_held_to_the_config_limits() {
         if value.as_u64().is_some_and(|v| v > limit as u64) {
             prop_assert_eq!(&outcome, "config", "{:?} = {}", path, value);
         }
+        if path.as_slice() == ["replay", "budget"]
+            && value
+                .as_f64()
+                .is_some_and(|v| !(v > 0.0 && v <= MAX_REPLAY_BUDGET as f64))
+        {
+            prop_assert_eq!(&outcome, "config", "{:?} = {}", path, value);
+        }
         Ok(outcome)
     });
 }
@@ -618,7 +629,7 @@ const MEMORY_KEYS: &[&str] = &[
 ];
 
 /// The fields of the replay section (plus one that does not exist).
-const REPLAY_KEYS: &[&str] = &["chain_length", "shuffle", "bogus"];
+const REPLAY_KEYS: &[&str] = &["chain_length", "shuffle", "budget", "bogus"];
 
 /// Integers around every size limit, and far past them.
 fn size() -> impl Strategy<Value = V> {
@@ -713,6 +724,11 @@ fn value_for(key: &'static str) -> BoxedStrategy<V> {
         "context_depth" | "max_nodes" | "max_age" | "chain_length" | "seed" => size().boxed(),
         "alphas" => vec(float(), 0..6).prop_map(V::Arr).boxed(),
         "shuffle" => any::<bool>().prop_map(V::Bool).boxed(),
+        "budget" => prop_oneof![
+            float(),
+            select(vec!["all", "ALL", "some"]).prop_map(|b| V::Str(b.to_string())),
+        ]
+        .boxed(),
         "metric" => prop_oneof![
             select(vec![
                 "manhattan",
