@@ -23,6 +23,7 @@ repo=$(cd "$here/../.." && pwd)
 TABLES=(
   "recognition-paper-preset|GOOD, about a day|Recognition on the paper preset (both tables)"
   "recognition-ae-vs-good|ae|Recognition with the network's feature: ae against GOOD, NI"
+  "forgetting-nc|a minute|Forgetting in NC: replay and temporal context (small dataset)"
   "grasp-network|ae, ycb, about 2 hours|The shipped checkpoint and its rectangle metric"
   "network-vs-analytic|ae, ycb|The robot with the network's grasps, against analytic and random"
   "others-analytic|ae, ycb|The network against the analytic source on the other YCB meshes"
@@ -64,6 +65,14 @@ table_recognition_ae_vs_good() {
   echo "OMP_NUM_THREADS=1 lgdm train --scenario ni --encoder ae --trials 5 --no-replay --out $t/ae-no-replay --progress none"
   echo "OMP_NUM_THREADS=1 lgdm train --scenario ni --encoder good --trials 5 --out $t/good-replay --progress none"
   echo "OMP_NUM_THREADS=1 lgdm train --scenario ni --encoder good --trials 5 --no-replay --out $t/good-no-replay --progress none"
+}
+
+table_forgetting_nc() {
+  local t=runs/forgetting-nc
+  echo "lgdm train --scenario nc --trials 5 --out $t/replay --progress none"
+  echo "lgdm train --scenario nc --trials 5 --no-replay --out $t/no-replay --progress none"
+  echo "lgdm train --scenario nc --trials 5 --no-context --out $t/no-context --progress none"
+  echo "lgdm train --scenario nc --trials 5 --no-replay --no-context --out $t/neither --progress none"
 }
 
 table_grasp_network() {

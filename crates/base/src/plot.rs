@@ -1,7 +1,7 @@
 //! PNG charts in the style of the paper's figures, drawn with plotters into a buffer and written
 //! atomically ([`crate::fs::write_bytes`]): line charts with a shaded band per series
-//! ([`line_chart`]), bar charts with whiskers ([`bar_chart`]) and heat maps of counts
-//! ([`heat_map`]). The run directories' plots are drawn with these —
+//! ([`line_chart`]), bar charts with whiskers ([`bar_chart`]), heat maps of counts
+//! ([`heat_map`]) and of values in [0, 1] ([`value_heat_map`]). The run directories' plots are drawn with these —
 //! `lgdm_gdm::experiment::plots` for training runs and `lgdm_sim::run::plots` for robot runs —
 //! whoever writes the run, the binary or the Python module. Errors come back as [`io::Error`].
 //!
@@ -190,7 +190,7 @@ pub fn bar_chart(
             .configure_mesh()
             .disable_x_mesh()
             .x_labels(n.max(1))
-            .x_label_formatter(&|x| bar_label(&names, *x))
+            .x_label_formatter(&|x| tick_name(&names, *x))
             .y_desc(y_desc)
             .label_style(("sans-serif", 12))
             .draw()
@@ -223,60 +223,145 @@ pub fn bar_chart(
 /// Writes `counts` (rows: true, columns: predicted, in the order of `names`) as a PNG heat map,
 /// each row shaded by its share and each non-zero cell labelled with its count.
 pub fn heat_map(path: &Path, title: &str, names: &[String], counts: &[Vec<u64>]) -> io::Result<()> {
+    let cells: Vec<Vec<Option<Cell>>> = counts
+        .iter()
+        .map(|row| {
+            let total: u64 = row.iter().sum();
+            row.iter()
+                .map(|&v| {
+                    let share = if total == 0 {
+                        0.0
+                    } else {
+                        v as f64 / total as f64
+                    };
+                    Some(Cell {
+                        shade: share,
+                        text: (v > 0).then(|| v.to_string()),
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    grid(path, title, None, names, names, &cells)
+}
+
+/// Grids larger than this many rows or columns leave their cells unlabelled.
+const LABELLED_GRID: usize = 12;
+
+/// Writes `values` (rows top to bottom as `row_names`, columns left to right as
+/// `column_names`) as a PNG heat map shaded by value on a fixed [0, 1] scale (white 0, dark
+/// blue 1), each cell labelled in per cent while the grid has at most 12 rows and columns.
+/// `None`, or a value that is not finite, leaves its cell empty (grey). The axes are described
+/// by `x_desc` and `y_desc`.
+pub fn value_heat_map(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    row_names: &[String],
+    column_names: &[String],
+    values: &[Vec<Option<f64>>],
+) -> io::Result<()> {
+    let labelled = row_names.len().max(column_names.len()) <= LABELLED_GRID;
+    let cells: Vec<Vec<Option<Cell>>> = values
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|v| {
+                    v.filter(|v| v.is_finite()).map(|v| Cell {
+                        shade: v.clamp(0.0, 1.0),
+                        text: labelled.then(|| format!("{:.0}", 100.0 * v)),
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    grid(
+        path,
+        title,
+        Some((x_desc, y_desc)),
+        row_names,
+        column_names,
+        &cells,
+    )
+}
+
+/// One cell of [`grid`]: its shade in [0, 1] and its label.
+struct Cell {
+    shade: f64,
+    text: Option<String>,
+}
+
+/// The name of tick `v` among `names` (ticks sit at 0, 1, …); empty between ticks.
+fn tick_name(names: &[String], v: f64) -> String {
+    let i = v.round();
+    if (v - i).abs() < 1e-6 && i >= 0.0 {
+        names.get(i as usize).cloned().unwrap_or_default()
+    } else {
+        String::new()
+    }
+}
+
+/// Draws a grid of shaded cells (`None`: an empty, grey cell) with row and column names.
+fn grid(
+    path: &Path,
+    title: &str,
+    desc: Option<(&str, &str)>,
+    row_names: &[String],
+    column_names: &[String],
+    cells: &[Vec<Option<Cell>>],
+) -> io::Result<()> {
     register_font();
-    let n = names.len();
+    let (rows, columns) = (row_names.len(), column_names.len());
     let mut buf = vec![0u8; (WIDTH * HEIGHT * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_error)?;
-        let names_x = names.to_vec();
-        let names_y = names.to_vec();
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
             .margin(12)
             .x_label_area_size(60)
             .y_label_area_size(100)
-            .build_cartesian_2d(-0.5f64..n as f64 - 0.5, n as f64 - 0.5..-0.5f64)
+            .build_cartesian_2d(-0.5f64..columns as f64 - 0.5, rows as f64 - 0.5..-0.5f64)
             .map_err(draw_error)?;
-        let fmt = |names: &Vec<String>, v: &f64| {
-            let i = v.round();
-            if (v - i).abs() < 1e-6 && i >= 0.0 {
-                names.get(i as usize).cloned().unwrap_or_default()
-            } else {
-                String::new()
-            }
-        };
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_labels(n.max(1))
-            .y_labels(n.max(1))
-            .x_label_formatter(&|v| fmt(&names_x, v))
-            .y_label_formatter(&|v| fmt(&names_y, v))
-            .label_style(("sans-serif", 12))
-            .draw()
-            .map_err(draw_error)?;
-        for (r, row) in counts.iter().enumerate() {
-            let total: u64 = row.iter().sum();
-            for (c, &v) in row.iter().enumerate() {
-                let frac = if total == 0 {
-                    0.0
-                } else {
-                    v as f64 / total as f64
-                };
-                let shade = (255.0 * (1.0 - frac)) as u8;
+        let column_tick = |v: &f64| tick_name(column_names, *v);
+        let row_tick = |v: &f64| tick_name(row_names, *v);
+        let mut mesh = chart.configure_mesh();
+        mesh.disable_mesh()
+            .x_labels(columns.clamp(1, 2 * LABELLED_GRID))
+            .y_labels(rows.clamp(1, 2 * LABELLED_GRID))
+            .x_label_formatter(&column_tick)
+            .y_label_formatter(&row_tick)
+            .label_style(("sans-serif", 12));
+        if let Some((x_desc, y_desc)) = desc {
+            mesh.x_desc(x_desc).y_desc(y_desc);
+        }
+        mesh.draw().map_err(draw_error)?;
+        for (r, row) in cells.iter().enumerate() {
+            for (c, cell) in row.iter().enumerate() {
                 let (x, y) = (c as f64, r as f64);
+                let fill = match cell {
+                    Some(cell) => {
+                        let shade = (255.0 * (1.0 - cell.shade)) as u8;
+                        RGBColor(shade, shade, 255)
+                    }
+                    None => RGBColor(235, 235, 235),
+                };
                 chart
                     .draw_series(std::iter::once(Rectangle::new(
                         [(x - 0.5, y - 0.5), (x + 0.5, y + 0.5)],
-                        RGBColor(shade, shade, 255).filled(),
+                        fill.filled(),
                     )))
                     .map_err(draw_error)?;
-                if v > 0 {
-                    let color = if frac > 0.5 { WHITE } else { BLACK };
+                if let Some(Cell {
+                    shade,
+                    text: Some(text),
+                }) = cell
+                {
+                    let color = if *shade > 0.5 { WHITE } else { BLACK };
                     chart
                         .draw_series(std::iter::once(Text::new(
-                            v.to_string(),
+                            text.clone(),
                             (x - 0.2, y - 0.15),
                             ("sans-serif", 12).into_font().color(&color),
                         )))
@@ -287,16 +372,6 @@ pub fn heat_map(path: &Path, title: &str, names: &[String], counts: &[Vec<u64>])
         root.present().map_err(draw_error)?;
     }
     write_png(path, &buf)
-}
-
-/// The name of the bar at x (bars sit at 0, 1, …); empty between bars.
-fn bar_label(names: &[String], x: f64) -> String {
-    let i = x.round();
-    if (x - i).abs() < 1e-6 && i >= 0.0 {
-        names.get(i as usize).cloned().unwrap_or_default()
-    } else {
-        String::new()
-    }
 }
 
 #[cfg(test)]
@@ -345,6 +420,25 @@ mod tests {
         let names = vec!["mug".to_string(), "can".to_string()];
         let map = dir.path().join("map.png");
         heat_map(&map, "confusion", &names, &[vec![3, 1], vec![0, 4]]).unwrap();
+        let grid = |v: f64| {
+            let (low, high) = (dir.path().join("g-low.png"), dir.path().join("g-high.png"));
+            let values = vec![vec![Some(v), None], vec![Some(v), Some(f64::NAN)]];
+            let path = if v < 0.5 { low } else { high };
+            value_heat_map(&path, "R", "task", "after task", &names, &names, &values).unwrap();
+            decode(&path).2
+        };
+        // A higher value paints darker blue cells; an empty cell is grey.
+        let dark = |px: &[u8]| px.chunks(3).filter(|p| p[2] == 255 && p[0] < 100).count();
+        let grey = |px: &[u8]| px.chunks(3).filter(|p| p == &[235, 235, 235]).count();
+        let (lo, hi) = (grid(0.1), grid(0.9));
+        assert!(
+            dark(&hi) > dark(&lo) + 1000,
+            "{} vs {}",
+            dark(&hi),
+            dark(&lo)
+        );
+        assert!(grey(&lo) > 1000, "empty cells are grey");
+        assert_eq!(grid(0.1), lo, "same values, same bytes");
         let line = Line {
             name: "x".into(),
             points: vec![(1.0, 0.5, 0.1), (2.0, 0.7, 0.0)],

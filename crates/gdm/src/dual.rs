@@ -330,6 +330,15 @@ impl Gdm {
         samples: &[Sample<'_>],
         opts: PredictOptions,
     ) -> Result<Scores, GdmError> {
+        Ok(self.evaluate_with_predictions(samples, opts)?.0)
+    }
+
+    /// [`Gdm::evaluate`] and the predictions it scored ([`Gdm::predict`]'s), from one pass.
+    pub fn evaluate_with_predictions(
+        &self,
+        samples: &[Sample<'_>],
+        opts: PredictOptions,
+    ) -> Result<(Scores, Vec<Prediction>), GdmError> {
         let details = self.predict_details(samples, opts)?;
         let n = details.len();
         let qe_em = details.iter().map(|d| d.distance_em as f64).sum::<f64>() / n as f64;
@@ -342,13 +351,14 @@ impl Gdm {
                     .map(|(d, s)| (f(&d.prediction), g(s))),
             )
         };
-        Ok(Scores {
+        let scores = Scores {
             n,
             instance_accuracy: pairs(|p| p.instance, |s| s.instance),
             category_accuracy_em: pairs(|p| p.category_em, |s| s.category),
             category_accuracy_sm: pairs(|p| p.category, |s| s.category),
             quantization_error_em: qe_em,
             quantization_error_sm: qe_sm,
-        })
+        };
+        Ok((scores, details.into_iter().map(|d| d.prediction).collect()))
     }
 }

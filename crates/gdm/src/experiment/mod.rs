@@ -7,6 +7,7 @@
 //! - [`records`]: what a run measures (per step, per trial, summary over trials), i.e. the
 //!   contents of `metrics.json`.
 //! - [`evaluation`]: a trained model scored on some collections (`lgdm eval`).
+//! - [`forgetting`]: the accuracy matrix over tasks and ACC, BWT, F.
 //! - [`run_dir`]: the run-directory format (`config.toml`, `metrics.json`, `model-trial<t>.lgdm`)
 //!   and the merge of single-trial runs.
 //!
@@ -50,6 +51,7 @@
 //! ```
 
 pub mod evaluation;
+pub mod forgetting;
 pub mod plan;
 pub mod plots;
 pub mod records;

@@ -12,11 +12,13 @@ use super::ExperimentError;
 use super::records::{MeanStd, RunMetrics, StepRecord};
 
 /// The plots [`write_run_plots`] writes, in order.
-pub const RUN_PLOTS: [&str; 4] = [
+pub const RUN_PLOTS: [&str; 6] = [
     "nodes.png",
     "accuracy.png",
     "quantization_error.png",
     "category_accuracy.png",
+    super::forgetting::PLOTS[0],
+    super::forgetting::PLOTS[1],
 ];
 
 /// One figure over steps across trials: (step, mean, std) where every trial measured it.
@@ -37,7 +39,8 @@ fn series(m: &RunMetrics, name: &str, f: impl Fn(&StepRecord) -> Option<f64>) ->
 }
 
 /// Writes [`RUN_PLOTS`] into `dir`: the nodes of both memories, the accuracies, the
-/// quantization errors (over steps, or epochs for `batch`) and the per-category test accuracy.
+/// quantization errors (over steps, or epochs for `batch`), the per-category test accuracy and
+/// the accuracy matrices ([`super::forgetting::write_plots`]).
 pub fn write_run_plots(dir: &Path, m: &RunMetrics) -> Result<(), ExperimentError> {
     let x_desc = if m.scenario == "batch" {
         "epoch"
@@ -48,7 +51,7 @@ pub fn write_run_plots(dir: &Path, m: &RunMetrics) -> Result<(), ExperimentError
         path: dir.join(name).display().to_string(),
         message: e.to_string(),
     };
-    let [nodes, accuracy, quantization, categories] = RUN_PLOTS;
+    let [nodes, accuracy, quantization, categories, ..] = RUN_PLOTS;
     line_chart(
         &dir.join(nodes),
         "Number of nodes",
@@ -125,5 +128,6 @@ pub fn write_run_plots(dir: &Path, m: &RunMetrics) -> Result<(), ExperimentError
         &bars,
         1.05,
     )
-    .map_err(|e| error(categories, e))
+    .map_err(|e| error(categories, e))?;
+    super::forgetting::write_plots(dir, &m.trials)
 }

@@ -83,6 +83,10 @@ pub struct TrialRecord {
     pub inference_ms_per_sample: f64,
     /// Wall time of learning and per-step evaluation.
     pub train_seconds: f64,
+    /// The accuracy matrices of the tasks (new categories, new instances) and ACC, BWT, F
+    /// ([`super::forgetting`]); absent in runs recorded before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forgetting: Option<super::forgetting::Forgetting>,
 }
 
 /// Mean and (sample) standard deviation.
@@ -145,6 +149,9 @@ pub struct Summary {
     pub model_size_mb: MeanStd,
     /// Inference time per sample in ms.
     pub inference_ms_per_sample: MeanStd,
+    /// ACC, BWT and F over the trials that recorded them ([`super::forgetting`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forgetting: Option<super::forgetting::ForgettingSummary>,
 }
 
 impl Summary {
@@ -179,6 +186,7 @@ impl Summary {
             semantic_nodes: col(&|t| t.semantic_nodes as f64),
             model_size_mb: col(&|t| t.model_size_bytes as f64 / 1e6),
             inference_ms_per_sample: col(&|t| t.inference_ms_per_sample),
+            forgetting: super::forgetting::ForgettingSummary::of(trials),
         }
     }
 }

@@ -91,5 +91,6 @@ pub fn summary_table(m: &RunMetrics) -> String {
         "inference time",
         num(&s.inference_ms_per_sample, 3)
     );
+    out.push_str(&super::forgetting::summary_lines(s.forgetting.as_ref()));
     out
 }

@@ -716,6 +716,7 @@ mod tests {
                 model_size_bytes: 1000,
                 inference_ms_per_sample: 0.1,
                 train_seconds: 1.0,
+                forgetting: None,
             })
             .collect();
         let summary = Summary::of(&trials);

@@ -9,6 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeSet;
 use std::time::Instant;
 
+use super::forgetting::Tracker;
 use super::plan::{self, EvalScope, Plan, Scenario};
 use super::records::{Figures, StepRecord, TrialRecord};
 use super::{ExperimentError, StepProgress, Table};
@@ -147,9 +148,10 @@ pub(crate) fn run_trial(
     let started = Instant::now();
     let mut steps = Vec::with_capacity(plan.steps.len());
     let mut seen = Seen::default();
+    let mut tracker = Tracker::new(data, &plan, s.eval_samples, s.seed);
     let n_steps = plan.steps.len();
     for (k, step) in plan.steps.iter().enumerate() {
-        let record = run_step(&mut gdm, data, s, &plan, k, &mut seen)?;
+        let record = run_step(&mut gdm, data, s, &plan, k, &mut seen, &mut tracker)?;
         progress(StepProgress {
             trial,
             step: k + 1,
@@ -177,6 +179,7 @@ pub(crate) fn run_trial(
         model_size_bytes: gdm.size_bytes(),
         inference_ms_per_sample: last.inference_ms_per_sample,
         train_seconds,
+        forgetting: Some(tracker.finish()),
     };
     Ok((gdm, record))
 }
@@ -191,7 +194,8 @@ struct Seen {
 }
 
 /// Step `k` of `plan`: learn it, then evaluate when due (every `eval_every`-th step and the
-/// last); the step's record.
+/// last) and let `tracker` score the tasks learnt so far (with the step's test predictions
+/// when they serve); the step's record.
 fn run_step(
     gdm: &mut Gdm,
     data: &Table<'_>,
@@ -199,6 +203,7 @@ fn run_step(
     plan: &Plan,
     k: usize,
     seen: &mut Seen,
+    tracker: &mut Tracker,
 ) -> Result<StepRecord, ExperimentError> {
     let step = &plan.steps[k];
     let step_started = Instant::now();
@@ -217,6 +222,11 @@ fn run_step(
     } else {
         (None, None)
     };
+    let evaluated = test
+        .as_ref()
+        .map(|t| (&t.sequences[..], &t.predictions[..]));
+    tracker.after_step(k, gdm, data, evaluated)?;
+    let test = test.map(|t| t.scores);
     Ok(StepRecord {
         step: k + 1,
         label: step.label.clone(),
@@ -260,6 +270,13 @@ fn learn_step(
     Ok(train_stats.expect("at least one epoch"))
 }
 
+/// A step's test evaluation: the sequences scored, their predictions in order, the scores.
+struct TestEvaluation {
+    sequences: Vec<Vec<usize>>,
+    predictions: Vec<Prediction>,
+    scores: Scores,
+}
+
 /// Scores after step `k`: on the training data (the step's sequences in batch learning, else
 /// everything seen) and on the test set (scoped as the plan says; `None` when empty), each
 /// subsampled to `eval_samples` except the last step's test set.
@@ -270,7 +287,7 @@ fn evaluate_step(
     plan: &Plan,
     k: usize,
     seen: &Seen,
-) -> Result<(Scores, Option<Scores>), ExperimentError> {
+) -> Result<(Scores, Option<TestEvaluation>), ExperimentError> {
     let opts = PredictOptions::default();
     let step = &plan.steps[k];
     let last = k + 1 == plan.steps.len();
@@ -306,10 +323,14 @@ fn evaluate_step(
     let test = if test_samples.is_empty() {
         None
     } else {
-        Some(
-            gdm.evaluate(&test_samples, opts)
-                .map_err(ExperimentError::gdm("evaluating on test data"))?,
-        )
+        let (scores, predictions) = gdm
+            .evaluate_with_predictions(&test_samples, opts)
+            .map_err(ExperimentError::gdm("evaluating on test data"))?;
+        Some(TestEvaluation {
+            sequences: test_seqs,
+            predictions,
+            scores,
+        })
     };
     Ok((train, test))
 }

@@ -73,9 +73,12 @@ def run_scenario(
     """Runs a scenario (``"batch"``, ``"incremental"``, ``"ni"``, ``"nc"`` or ``"nic"``) over
     trials and returns the records ``lgdm train`` writes to ``metrics.json``: per trial the
     held-out instances, per-step figures (``steps``), the final ``test``, ``test_no_context``,
-    ``new_instance`` and per-category accuracies, and a ``summary`` of means and standard
-    deviations over trials. Accuracies are fractions; ``None`` where nothing was scored (as
-    ``null`` in ``metrics.json``).
+    ``new_instance`` and per-category accuracies, ``forgetting`` (the accuracy matrix over
+    tasks — ``categories`` for the semantic memory, ``instances`` for the episodic one — with
+    ``average_accuracy``, ``backward_transfer`` and ``average_forgetting``;
+    ``np.array(m["accuracy"], dtype=float)`` reads a matrix, NaN above the diagonal), and a
+    ``summary`` of means and standard deviations over trials. Accuracies are fractions;
+    ``None`` where nothing was scored (as ``null`` in ``metrics.json``).
 
     ``table`` is the dict :func:`lgdm.good_features` returns (it carries the dataset's split,
     category names and path) or any mapping with ``features`` (n, d) and integer ``collection``,
