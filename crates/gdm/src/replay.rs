@@ -93,6 +93,7 @@ impl Gdm {
         if em.len() < 2 {
             return Ok(ReplayStats::default());
         }
+        let budgeted = matches!(self.config.replay.budget, ReplayBudget::Learnt(_));
         let budget = match self.config.replay.budget {
             ReplayBudget::All => usize::MAX,
             // Validated: finite, > 0 and bounded; the product saturates in the cast.
@@ -118,7 +119,7 @@ impl Gdm {
         // indices stay valid.
         let mut semantic_hint: Vec<Option<usize>> = vec![None; n];
         let mut order: Vec<usize> = (0..n).collect();
-        if self.config.replay.shuffle || budget != usize::MAX {
+        if self.config.replay.shuffle || budgeted {
             let seed = splitmix64(self.config.seed ^ splitmix64(self.replays));
             order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
         }
@@ -170,7 +171,7 @@ mod tests {
     use crate::config::{GdmConfig, MAX_REPLAY_BUDGET};
     use crate::dual::Sample;
 
-    /// 40 one-dimensional views in 4 sequences.
+    /// 40 two-dimensional views in 4 sequences.
     fn xs() -> Vec<[f32; 2]> {
         (0..40)
             .map(|i| {
