@@ -202,7 +202,7 @@ def test_run_directories_from_python_are_the_clis(cli, small_dataset, tmp_path):
     rows = lambda d: (d / "summary.txt").read_text().splitlines()[:5]  # noqa: E731
     assert rows(py_out) == rows(cli_out)
     pictures = sorted(p.name for p in cli_out.glob("*.png"))
-    assert len(pictures) == 4
+    assert len(pictures) == 6
     for name in pictures:
         assert (py_out / name).read_bytes() == (cli_out / name).read_bytes(), name
     # A run directory is not written over without force=True.
