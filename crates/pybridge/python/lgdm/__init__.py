@@ -56,8 +56,8 @@ from ._lgdm import __version__
 
 __all__ = [
     "GDM",
-    "PRESETS",
     "LEARNERS",
+    "PRESETS",
     "SCENARIOS",
     "CheckpointError",
     "ConfigError",

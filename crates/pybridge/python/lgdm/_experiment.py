@@ -17,7 +17,14 @@ from . import _lgdm
 from ._errors import InputError
 from ._gdm import GDM, _config_json, _features, _ids
 
-__all__ = ["LEARNERS", "SCENARIOS", "merge_runs", "resume_scenario", "run_scenario", "scenario_defaults"]
+__all__ = [
+    "LEARNERS",
+    "SCENARIOS",
+    "merge_runs",
+    "resume_scenario",
+    "run_scenario",
+    "scenario_defaults",
+]
 
 #: The scenario names, in the paper's order.
 SCENARIOS: tuple[str, ...] = tuple(_lgdm.SCENARIOS)
