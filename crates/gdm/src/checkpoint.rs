@@ -376,8 +376,20 @@ impl Gdm {
         self.to_bytes().len()
     }
 
-    /// Reads a model from checkpoint bytes; every kind of damage gives a typed error.
+    /// Reads a model from checkpoint bytes; every kind of damage gives a typed error, and a
+    /// baseline's model file ([`crate::learner`]) is refused naming its learner.
     pub fn from_bytes(bytes: &[u8]) -> Result<Gdm, CheckpointError> {
+        if bytes.starts_with(&crate::learner::BASELINE_MAGIC) {
+            let found = match bytes.get(HEADER_LEN) {
+                Some(1) => "slda",
+                Some(2) => "ncm",
+                _ => "slda or ncm",
+            };
+            return Err(CheckpointError::OtherLearner {
+                found: found.into(),
+                expected: "gdm".into(),
+            });
+        }
         let magic_len = bytes.len().min(MAGIC.len());
         if bytes[..magic_len] != MAGIC[..magic_len] {
             return Err(CheckpointError::BadMagic);

@@ -91,6 +91,10 @@ pub enum GdmError {
     /// Prediction needs at least one trained node in each memory.
     #[error("the model has not been trained yet (no nodes)")]
     NotTrained,
+    /// The learner cannot do what was asked (a baseline asked to replay), or its arithmetic
+    /// failed (a covariance that no shrinkage makes invertible).
+    #[error("{0}")]
+    Learner(String),
     /// A checkpoint could not be written or read.
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
@@ -135,6 +139,15 @@ pub enum CheckpointError {
     /// The payload passed the checksum but its content is inconsistent.
     #[error("corrupt checkpoint: {0}")]
     Corrupt(String),
+    /// The file holds a model of another learner than the reader's (a baseline's model read
+    /// as a GDM checkpoint).
+    #[error("a model of the {found} learner, not of the {expected} learner")]
+    OtherLearner {
+        /// The learner that wrote the file.
+        found: String,
+        /// The learner the reader reads.
+        expected: String,
+    },
     /// The configuration stored in the checkpoint is invalid.
     #[error("checkpoint holds an invalid config: {0}")]
     Config(#[from] ConfigError),

@@ -13,6 +13,8 @@
 //! - [`checkpoint`]: the versioned, checksummed, atomically written model file.
 //! - [`experiment`]: the paper's scenarios run over trials on a labelled feature table (plans,
 //!   runner, records, run directories) — what `lgdm train` and `lgdm.run_scenario` call.
+//! - [`learner`]: the learner seam ([`learner::Learner`]): the GDM or a baseline on the same
+//!   features (streaming LDA, nearest class mean), chosen by [`learner::LearnerKind`].
 //! - [`error`]: typed errors.
 //!
 //! Labels are open-ended `u32`s (no class count declared); samples may be unlabelled. Each
@@ -50,6 +52,7 @@ pub mod config;
 pub mod dual;
 pub mod error;
 pub mod experiment;
+pub mod learner;
 pub mod memory;
 pub mod metric;
 pub mod network;

@@ -20,6 +20,7 @@ use lgdm_gdm::checkpoint::HEADER_LEN;
 use lgdm_gdm::config::{
     MAX_CHAIN_LENGTH, MAX_CONTEXT_DEPTH, MAX_DIM, MAX_NODES, MAX_REPLAY_BUDGET,
 };
+use lgdm_gdm::learner::{Baseline, Learner, LearnerKind, Model};
 use lgdm_gdm::{CheckpointError, Gdm, GdmConfig, Metric, PredictOptions, Sample};
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -321,6 +322,7 @@ fn check_checkpoint(input: &[u8]) -> Result<String, TestCaseError> {
                 CheckpointError::Checksum { .. } => "checksum",
                 CheckpointError::Corrupt(_) => "corrupt",
                 CheckpointError::Config(_) => "config",
+                CheckpointError::OtherLearner { .. } => "other learner",
             };
             return Ok(kind.to_string());
         }
@@ -1015,4 +1017,107 @@ fn deeply_nested_documents_are_errors() {
         );
         assert!(read_config(&json_text, Syntax::Json).is_err());
     }
+}
+
+// ---- baseline model files (lgdm_gdm::learner) ------------------------------------------------
+
+/// Trained streaming-LDA and nearest-class-mean models, of 1 and 4 features.
+fn baseline_bases() -> &'static [Vec<u8>] {
+    static BASES: OnceLock<Vec<Vec<u8>>> = OnceLock::new();
+    BASES.get_or_init(|| {
+        let mut out = Vec::new();
+        for kind in [LearnerKind::Slda, LearnerKind::Ncm] {
+            for dim in [1, 4] {
+                let rows = probe(dim);
+                let mut model = Baseline::new(kind, dim).unwrap();
+                model.learn(&samples(&rows)).unwrap();
+                out.push(model.to_bytes());
+            }
+        }
+        out
+    })
+}
+
+/// The declared values of a baseline's file (see `lgdm_gdm::learner`'s baseline layout).
+fn baseline_fields(bytes: &[u8]) -> Vec<Field> {
+    let u64_at = |p: usize| u64::from_le_bytes(bytes[p..p + 8].try_into().unwrap()) as usize;
+    let field = |name: &str, at, width| Field {
+        name: name.into(),
+        at,
+        width,
+    };
+    let mut out = vec![
+        field("version", 8, 4),
+        field("payload length", 12, 8),
+        field("learner", 24, 1),
+        field("dim", 25, 8),
+        field("pairs", 33, 8),
+    ];
+    let slda = bytes[24] == 1;
+    let dim = u64_at(25);
+    let mut p = 41 + 8 * u64_at(33);
+    for head in ["category", "instance"] {
+        out.push(field(head, p, 8));
+        let labels = u64_at(p);
+        p += 8;
+        for _ in 0..labels {
+            out.push(field("label count", p + 4, 8));
+            p += 12 + 8 * dim;
+        }
+        out.push(field("head total", p, 8));
+        p += 8 + if slda { 8 * dim * dim } else { 0 };
+    }
+    assert_eq!(p, bytes.len(), "the walk must cover the file exactly");
+    out
+}
+
+#[test]
+fn mutated_baseline_models_never_panic() {
+    let strategy = (any::<Index>(), vec(edit(), 1..4), prop::bool::weighted(0.9));
+    fuzz(
+        "mutated baseline models",
+        strategy,
+        |(base, edits, resealed)| {
+            let base = &baseline_bases()[base.index(baseline_bases().len())];
+            let fields = baseline_fields(base);
+            let mut bytes = base.clone();
+            for e in &edits {
+                if bytes.is_empty() {
+                    break;
+                }
+                apply(&mut bytes, &fields, e);
+            }
+            if resealed {
+                reseal(&mut bytes);
+            }
+            let (result, peak) = peak_of(|| Model::from_bytes(&bytes));
+            prop_assert!(
+                peak <= allowance(bytes.len()),
+                "reading {} bytes allocated {peak} bytes",
+                bytes.len()
+            );
+            let model = match result {
+                Ok(m) => m,
+                Err(e) => {
+                    prop_assert!(!e.to_string().is_empty());
+                    return Ok("error".into());
+                }
+            };
+            // A model that reads back works and saves to the same bytes.
+            prop_assert_eq!(&model.to_bytes(), &bytes);
+            let mut model = model;
+            let rows = probe(model.dim());
+            let samples = samples(&rows);
+            let _ = model.predict(&samples, PredictOptions::default());
+            model
+                .learn(&samples)
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            match model.predict(&samples, PredictOptions::default()) {
+                Ok(_) => Ok("model".into()),
+                // Doctored means or scatter can make the covariance singular: a typed error.
+                Err(lgdm_gdm::GdmError::Learner(_)) => Ok("model, singular covariance".into()),
+                Err(e) => Err(TestCaseError::fail(e.to_string())),
+            }
+        },
+    );
 }

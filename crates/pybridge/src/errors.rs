@@ -94,6 +94,7 @@ pub fn gdm_kind(err: &GdmError) -> Kind {
         | GdmError::DimensionMismatch { .. }
         | GdmError::NonFinite { .. } => Kind::Input,
         GdmError::NotTrained => Kind::NotFitted,
+        GdmError::Learner(_) => Kind::Config,
         GdmError::Checkpoint(_) => Kind::Checkpoint,
     }
 }

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 
 use lgdm_gdm::experiment::run_dir::{self, Provenance, RunConfig, RunDir};
 use lgdm_gdm::experiment::{self, Experiment, Scenario, Settings, Table};
+use lgdm_gdm::learner::LearnerKind;
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -81,7 +82,7 @@ pub fn scenario_defaults<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py
     test_collections, categories, scenario_name, *, instances=Vec::new(), config=None, trials=None, seed=0,
     replay=None, context=true, epochs=None, eval_every=None, eval_samples=None, train_samples=0,
     validate=false, jobs=None, encoder="good", dataset="", hyperparameters_from="",
-    out=None, force=false, resume=false
+    out=None, force=false, resume=false, learner=None, return_models=false
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn run_scenario(
@@ -114,7 +115,12 @@ pub fn run_scenario(
     out: Option<PathBuf>,
     force: bool,
     resume: bool,
+    learner: Option<&str>,
+    return_models: bool,
 ) -> PyResult<(String, Vec<Model>)> {
+    let learner = learner
+        .map(|name| name.parse::<LearnerKind>().map_err(errors::input))
+        .transpose()?;
     // Resuming: the run's own settings, from its config.toml.
     let recorded = match (&out, resume) {
         (Some(dir), true) => Some(RunConfig::read(dir).map_err(experiment_error)?),
@@ -124,7 +130,14 @@ pub fn run_scenario(
     let (settings, hyperparameters_from) = match &recorded {
         Some(config) => (config.settings(), config.hyperparameters_from.clone()),
         None => {
-            let mut settings = Settings::new(scenario(scenario_name)?);
+            let learner = learner.unwrap_or_default();
+            let mut settings = Settings::for_learner(scenario(scenario_name)?, learner);
+            if !learner.is_gdm() && config.is_some() {
+                return Err(errors::input(format!(
+                    "a preset or hyperparameters apply to learner=\"gdm\" only: the {learner} \
+                     learner has none"
+                )));
+            }
             if let Some(text) = config {
                 settings.config = config_from_json(text)?;
             }
@@ -142,6 +155,19 @@ pub fn run_scenario(
             (settings, hyperparameters_from.to_string())
         }
     };
+    if let (Some(_), Some(l)) = (&recorded, learner) {
+        return Err(errors::input(format!(
+            "learner={:?} with resume: a run resumes with its own learner",
+            l.name()
+        )));
+    }
+    let learner = settings.learner;
+    if return_models && !learner.is_gdm() {
+        return Err(errors::input(format!(
+            "return_models=True gives GDM objects: the {learner} learner's models are not GDMs \
+             (its figures are in the metrics; with out= its model files are in the run directory)"
+        )));
+    }
     let jobs = jobs.unwrap_or_else(experiment::default_jobs);
 
     let (x, n, dim) = features(&features_, None)?;
@@ -168,10 +194,15 @@ pub fn run_scenario(
         let runs = py
             .detach(|| experiment.run(jobs, &|_| {}))
             .map_err(experiment_error)?;
-        let (models, records): (Vec<_>, Vec<_>) = runs
-            .into_iter()
-            .map(|(gdm, record)| (Model::from_gdm(gdm), record))
-            .unzip();
+        let (models, records): (Vec<_>, Vec<_>) = runs.into_iter().unzip();
+        let models = if return_models {
+            models
+                .into_iter()
+                .filter_map(|m| m.into_gdm().map(Model::from_gdm))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let metrics = experiment.metrics(records, encoder, dataset);
         return Ok((metrics.to_json(), models));
     };
@@ -199,7 +230,7 @@ pub fn run_scenario(
     let metrics = py
         .detach(|| run_dir.play(&experiment, finished, jobs, &|_| {}, encoder, dataset))
         .map_err(experiment_error)?;
-    let models = (0..trials)
+    let models = (0..if return_models { trials } else { 0 })
         .map(|t| {
             let path = dir.join(run_dir::model_file(t));
             lgdm_gdm::Gdm::load(&path)

@@ -49,6 +49,13 @@ fn _lgdm(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .collect::<Vec<_>>(),
     )?;
     m.add(
+        "LEARNERS",
+        lgdm_gdm::learner::LearnerKind::ALL
+            .iter()
+            .map(|l| l.name())
+            .collect::<Vec<_>>(),
+    )?;
+    m.add(
         "SCENARIOS",
         lgdm_gdm::experiment::Scenario::ALL
             .iter()

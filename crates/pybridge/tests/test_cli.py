@@ -252,3 +252,51 @@ def test_pick_place_model_loads_in_python(cli, tmp_path):
     assert model.n_nodes_episodic_ == last["episodic_nodes"] >= 2
     assert model.n_nodes_semantic_ == last["semantic_nodes"]
     assert json.loads((out / "model.json").read_text())["encoder"] == "good"
+
+
+@pytest.mark.parametrize("learner", ["slda", "ncm"])
+def test_baselines_through_python_equal_the_cli_metrics(cli, small_dataset, tmp_path, learner):
+    """A baseline (``--learner``) through ``run_scenario`` gives the CLI's metrics.json; its
+    model is refused by ``GDM.load`` and ``lgdm eval``, naming the learner, nothing written."""
+    ds = small_dataset
+    out = tmp_path / "run"
+    run(cli, "train", "--scenario", "ni", "--learner", learner, "--dataset", ds.path,
+        "--trials", 2, "--seed", 4, "--out", out, "--progress", "none",
+        cache=tmp_path / "cache")  # fmt: skip
+    from_cli = json.loads((out / "metrics.json").read_text())
+    assert from_cli["learner"] == learner
+    assert from_cli["replay"] is False and from_cli["context"] is False
+    from_python = lgdm.run_scenario(lgdm.good_features(ds), "ni", learner=learner, trials=2, seed=4)
+    assert without_times(from_python) == without_times(from_cli)
+    assert from_cli["summary"]["test_category_accuracy_sm"]["mean"] > 1 / len(ds.categories)
+
+    model = out / "model-trial0.lgdm"
+    with pytest.raises(lgdm.CheckpointError, match=f"a model of the {learner} learner"):
+        lgdm.GDM.load(model)
+    env = {**os.environ, "LGDM_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run(
+        [str(cli), "eval", "--model", str(model), "--dataset", str(ds.path), "--out",
+         str(tmp_path / "eval"), "--progress", "none"],
+        capture_output=True, text=True, env=env, check=False,
+    )  # fmt: skip
+    assert done.returncode != 0
+    assert f"a model of the {learner} learner" in done.stderr
+    assert not (tmp_path / "eval").exists()
+
+
+def test_cli_refuses_an_unknown_learner_and_replay_for_a_baseline(cli, tmp_path):
+    env = {**os.environ, "LGDM_CACHE_DIR": str(tmp_path / "cache")}
+    for args, message in [
+        (["--learner", "lda"], "'lda'"),
+        (["--learner", "slda", "--replay"], "--replay applies to --learner gdm only"),
+        (["--learner", "ncm", "--preset", "paper_batch"], "--preset applies to --learner gdm"),
+    ]:
+        out = tmp_path / "run"
+        done = subprocess.run(
+            [str(cli), "train", "--scenario", "ni", *args, "--out", str(out), "--progress",
+             "none"],
+            capture_output=True, text=True, env=env, check=False,
+        )  # fmt: skip
+        assert done.returncode != 0, args
+        assert message in done.stderr, done.stderr
+        assert not out.exists(), args

@@ -203,3 +203,37 @@ def test_sizes_that_would_abort_are_config_errors():
         with pytest.raises(lgdm.ConfigError) as info:
             lgdm.GDM(**{key: value})
         assert info.value.field == field, (key, value)
+
+
+def _tiny_table() -> dict:
+    """3 collections (2 train, 1 test) × 2 categories × 2 instances × 3 frames of 2-d features."""
+    rows = [(c, i, f) for c in range(3) for i in range(4) for f in range(3)]
+    return {
+        "features": np.array([[i // 2 + 0.01 * f, 0.1 * (i % 2)] for _, i, f in rows], np.float32),
+        "collection": np.array([c for c, _, _ in rows]),
+        "category": np.array([i // 2 for _, i, _ in rows]),
+        "instance": np.array([i for _, i, _ in rows]),
+        "sequence": np.array([c * 10 + i for c, i, _ in rows]),
+        "frame": np.array([f for _, _, f in rows]),
+        "train_collections": [0, 1],
+        "test_collections": [2],
+        "categories": ["mug", "bowl"],
+    }
+
+
+def test_run_scenario_learners(tmp_path):
+    table = _tiny_table()
+    assert lgdm.LEARNERS == ("gdm", "slda", "ncm")
+    metrics = lgdm.run_scenario(table, "ni", learner="ncm", trials=1)
+    assert metrics["learner"] == "ncm"
+    assert metrics["summary"]["test_category_accuracy_sm"]["mean"] == 1.0
+    out = tmp_path / "run"
+    with pytest.raises(lgdm.InputError, match='unknown learner "lda": one of gdm, slda, ncm'):
+        lgdm.run_scenario(table, "ni", learner="lda", out=out)
+    with pytest.raises(lgdm.ConfigError, match="replay applies to the gdm learner only"):
+        lgdm.run_scenario(table, "ni", learner="slda", replay=True, out=out)
+    with pytest.raises(lgdm.InputError, match="return_models=True"):
+        lgdm.run_scenario(table, "ni", learner="slda", return_models=True, out=out)
+    with pytest.raises(lgdm.InputError, match='apply to learner="gdm" only'):
+        lgdm.run_scenario(table, "ni", learner="slda", preset="paper_batch", out=out)
+    assert not out.exists(), "nothing written for a refused run"

@@ -8,6 +8,7 @@ use clap::Args as ClapArgs;
 use lgdm_gdm::GdmConfig;
 use lgdm_gdm::experiment::run_dir::{Provenance, RunConfig, RunDir};
 use lgdm_gdm::experiment::{Experiment, Scenario, Settings, StepProgress};
+use lgdm_gdm::learner::LearnerKind;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -17,8 +18,9 @@ use crate::progress::{ProgressMode, Reporter};
 use lgdm_gdm::experiment::report::summary_table;
 
 /// Flags that describe the experiment: none of them may accompany `--resume`.
-const EXPERIMENT_FLAGS: [&str; 17] = [
+const EXPERIMENT_FLAGS: [&str; 18] = [
     "scenario",
+    "learner",
     "dataset",
     "encoder",
     "ae_checkpoint",
@@ -44,6 +46,12 @@ pub struct Args {
     /// `--config` of a run's config.toml (the run's scenario) or `--resume`.
     #[arg(long, value_parser = scenario_parser())]
     pub scenario: Option<Scenario>,
+    /// What learns: gdm (the Growing Dual-Memory network; default), slda (streaming linear
+    /// discriminant analysis) or ncm (nearest class mean) — the baselines on the same features,
+    /// plans, trials and seeds, with a per-instance and a per-category head (docs/guide/training.md,
+    /// "Baselines"). Replay, temporal context and the hyperparameters are the GDM's only.
+    #[arg(long, value_parser = learner_parser())]
+    pub learner: Option<LearnerKind>,
     /// Dataset directory written by `lgdm gen-dataset` (default: the embedded small dataset,
     /// generated into the cache directory on first use).
     #[arg(long)]
@@ -165,6 +173,15 @@ fn scenario_parser() -> impl clap::builder::TypedValueParser<Value = Scenario> {
     })
 }
 
+/// `--learner`'s parser: the library's names, listed in `--help`.
+fn learner_parser() -> impl clap::builder::TypedValueParser<Value = LearnerKind> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(LearnerKind::ALL.map(LearnerKind::name)).map(|s| {
+        s.parse::<LearnerKind>()
+            .expect("clap passes only listed names")
+    })
+}
+
 /// What a run needs besides its settings: the data and where the settings came from.
 struct Plan {
     settings: Settings,
@@ -178,7 +195,7 @@ struct Plan {
 /// with `--config`), then the flags.
 fn plan(args: &Args, reporter: &Reporter) -> Result<Plan> {
     let config = args.config.as_deref().map(read_config).transpose()?;
-    let (mut settings, from, mut encoder, mut dataset, mut ae_checkpoint) = match config {
+    let (mut settings, mut from, mut encoder, mut dataset, mut ae_checkpoint) = match config {
         Some(ConfigFile::Run(run)) => {
             let path = args.config.as_deref().expect("read from --config");
             if let Some(s) = args.scenario
@@ -237,6 +254,30 @@ fn plan(args: &Args, reporter: &Reporter) -> Result<Plan> {
             (settings, from, Encoder::Good, None, None)
         }
     };
+    if let Some(learner) = args.learner {
+        settings.learner = learner;
+    }
+    if !settings.learner.is_gdm() {
+        let learner = settings.learner;
+        let gdm_only = [
+            (args.replay, "--replay"),
+            (args.preset.is_some(), "--preset"),
+            (
+                args.config.is_some() && !from.starts_with("run config"),
+                "--config with hyperparameters",
+            ),
+        ];
+        if let Some((_, flag)) = gdm_only.iter().find(|(given, _)| *given) {
+            bail!(
+                "{flag} applies to --learner gdm only: the {learner} learner has no replay,                  temporal context or hyperparameters"
+            );
+        }
+        // A baseline has no replay: off unless asked for (refused above).
+        settings.replay = false;
+        if !from.starts_with("run config") {
+            from = format!("none (the {learner} learner has no hyperparameters)");
+        }
+    }
     if args.no_context {
         settings = settings.without_context();
     }
@@ -406,8 +447,10 @@ pub fn run(args: Args) -> Result<()> {
         ));
     }
     reporter.message(&format!(
-        "{}: {} trial(s) of {} steps on {} samples ({} features), replay {}, context {}, {} job(s)",
+        "{}: learner {}, {} trial(s) of {} steps on {} samples ({} features), replay {}, context {}, \
+         {} job(s)",
         s.scenario,
+        s.learner,
         todo.len(),
         steps,
         features.len(),
@@ -417,7 +460,7 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             "off".into()
         },
-        if s.config.episodic.context_depth > 0 {
+        if s.learner.is_gdm() && s.config.episodic.context_depth > 0 {
             "on"
         } else {
             "off"

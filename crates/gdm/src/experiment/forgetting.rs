@@ -44,7 +44,8 @@ use serde::{Deserialize, Serialize};
 use super::plan::Plan;
 use super::records::{MeanStd, TrialRecord};
 use super::{ExperimentError, Table, subsample};
-use crate::{Gdm, PredictOptions, Prediction};
+use crate::learner::Learner;
+use crate::{PredictOptions, Prediction};
 
 /// Mixed into the trial seed to draw the test sequences the matrix scores.
 const SUBSET_SEED: u64 = 0x666f_7267_6574_7469;
@@ -284,7 +285,7 @@ impl Tracker {
     pub(crate) fn after_step(
         &mut self,
         k: usize,
-        gdm: &Gdm,
+        gdm: &dyn Learner,
         data: &Table<'_>,
         evaluated: Option<(&[Vec<usize>], &[Prediction])>,
     ) -> Result<(), ExperimentError> {

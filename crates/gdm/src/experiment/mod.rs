@@ -66,7 +66,8 @@ pub use plan::{EvalScope, Plan, Rows, Scenario, Step};
 pub use records::{Figures, MeanStd, RunMetrics, StepRecord, Summary, TrialRecord};
 pub use runner::{stratified_subset, subsample};
 
-use crate::{CheckpointError, Gdm, GdmConfig, GdmError, Sample};
+use crate::learner::{LearnerKind, Model};
+use crate::{CheckpointError, GdmConfig, GdmError, Sample};
 use runner::TrialSettings;
 
 /// Trials per experiment unless the caller says otherwise.
@@ -270,6 +271,10 @@ pub struct Settings {
     /// read either, and one more instance per category (where two are left) stands in for
     /// them (default: off).
     pub validate: bool,
+    /// The learner trained (default: the GDM). A baseline has neither replay (`replay` must be
+    /// off) nor temporal context (the `config`'s context depth is unused), and `config` does not
+    /// apply to it.
+    pub learner: LearnerKind,
 }
 
 impl Settings {
@@ -287,7 +292,17 @@ impl Settings {
             eval_samples: DEFAULT_EVAL_SAMPLES,
             train_samples: 0,
             validate: false,
+            learner: LearnerKind::Gdm,
         }
+    }
+
+    /// The defaults of a scenario for `learner`: [`Settings::new`], with replay off for a
+    /// baseline.
+    pub fn for_learner(scenario: Scenario, learner: LearnerKind) -> Settings {
+        let mut s = Settings::new(scenario);
+        s.learner = learner;
+        s.replay &= learner.is_gdm();
+        s
     }
 
     /// Temporal context off (K = 0 in both memories), in training and prediction.
@@ -339,6 +354,12 @@ impl<'a> Experiment<'a> {
         }
         if settings.eval_every == Some(0) {
             return bad("eval_every must be at least 1".into());
+        }
+        if settings.replay && !settings.learner.is_gdm() {
+            return bad(format!(
+                "replay applies to the gdm learner only: the {} learner has none (turn replay off)",
+                settings.learner
+            ));
         }
         if settings.train_samples > 0 && settings.scenario != Scenario::Batch {
             return bad("train_samples applies to the batch scenario only".into());
@@ -443,6 +464,7 @@ impl<'a> Experiment<'a> {
             train_samples: self.settings.train_samples,
             seed: self.trial_seed(trial),
             validate: self.settings.validate,
+            learner: self.settings.learner,
         }
     }
 
@@ -459,13 +481,13 @@ impl<'a> Experiment<'a> {
         runner::plan_trial(&self.split_table(), &self.trial_settings(trial))
     }
 
-    /// Runs trial `t`: its plan's steps in order, measuring after each; the trained model and
-    /// the trial's record. `progress` is called after every step.
+    /// Runs trial `t`: its plan's steps in order, measuring after each; the trained model (of
+    /// the settings' learner) and the trial's record. `progress` is called after every step.
     pub fn run_trial(
         &self,
         trial: usize,
         progress: &dyn Fn(StepProgress),
-    ) -> Result<(Gdm, TrialRecord), ExperimentError> {
+    ) -> Result<(Model, TrialRecord), ExperimentError> {
         runner::run_trial(
             &self.split_table(),
             &self.trial_settings(trial),
@@ -485,7 +507,7 @@ impl<'a> Experiment<'a> {
         trials: &[usize],
         jobs: usize,
         progress: &(dyn Fn(StepProgress) + Sync),
-        finish: &(dyn Fn(usize, Gdm, TrialRecord) -> Result<T, ExperimentError> + Sync),
+        finish: &(dyn Fn(usize, Model, TrialRecord) -> Result<T, ExperimentError> + Sync),
     ) -> Result<Vec<T>, ExperimentError> {
         if jobs == 0 {
             return Err(ExperimentError::Settings("jobs must be at least 1".into()));
@@ -516,7 +538,7 @@ impl<'a> Experiment<'a> {
         &self,
         jobs: usize,
         progress: &(dyn Fn(StepProgress) + Sync),
-    ) -> Result<Vec<(Gdm, TrialRecord)>, ExperimentError> {
+    ) -> Result<Vec<(Model, TrialRecord)>, ExperimentError> {
         let all: Vec<usize> = (0..self.settings.trials).collect();
         self.run_with(&all, jobs, progress, &|_, gdm, record| Ok((gdm, record)))
     }
@@ -529,8 +551,10 @@ impl<'a> Experiment<'a> {
             encoder: encoder.into(),
             dataset: dataset.into(),
             seed: self.settings.seed,
+            learner: self.settings.learner,
             replay: self.settings.replay,
-            context: self.settings.config.episodic.context_depth > 0,
+            context: self.settings.learner.is_gdm()
+                && self.settings.config.episodic.context_depth > 0,
             epochs: self.settings.epochs,
             categories: self.table.category_names.to_vec(),
             instances: self.table.instance_names.to_vec(),

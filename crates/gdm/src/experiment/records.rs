@@ -204,6 +204,11 @@ pub struct RunMetrics {
     pub dataset: String,
     /// Base seed (trial t uses seed + t).
     pub seed: u64,
+    /// The learner (`gdm`, `slda`, `ncm`; absent in files of earlier versions: `gdm`). A
+    /// baseline's instance figures and node counts are those of its per-instance head, its
+    /// G-SM figures those of its per-category head (see [`crate::learner`]).
+    #[serde(default)]
+    pub learner: crate::learner::LearnerKind,
     /// Whether intrinsic replay was on.
     pub replay: bool,
     /// Whether temporal context was used in training (K > 0).

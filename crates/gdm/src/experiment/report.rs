@@ -34,6 +34,13 @@ pub fn summary_table(m: &RunMetrics) -> String {
         if m.replay { "on" } else { "off" },
         if m.context { "on" } else { "off" },
     );
+    if !m.learner.is_gdm() {
+        let _ = writeln!(
+            out,
+            "learner {}: G-EM rows = its per-instance means, G-SM rows = its per-category means",
+            m.learner
+        );
+    }
     let _ = writeln!(out, "{:<34} {:>16} {:>16}", "", "train", "test");
     let _ = writeln!(
         out,

@@ -77,6 +77,9 @@ pub struct RunConfig {
     pub train_samples: usize,
     /// Validation mode: the evaluation set is two training collections, not the test set.
     pub validate: bool,
+    /// The learner (absent in earlier runs' files: `gdm`).
+    #[serde(default)]
+    pub learner: crate::learner::LearnerKind,
     /// Where the hyperparameters came from.
     pub hyperparameters_from: String,
     /// `--encoder ae`: the checkpoint's path (absent for GOOD).
@@ -120,6 +123,7 @@ impl RunConfig {
             eval_samples: s.eval_samples,
             train_samples: s.train_samples,
             validate: s.validate,
+            learner: s.learner,
             hyperparameters_from: provenance.hyperparameters_from.clone(),
             ae_checkpoint: provenance.ae_checkpoint.clone(),
             ae_checkpoint_fnv1a: provenance.ae_checkpoint_fnv1a.clone(),
@@ -165,6 +169,7 @@ impl RunConfig {
             eval_samples: self.eval_samples,
             train_samples: self.train_samples,
             validate: self.validate,
+            learner: self.learner,
         }
     }
 }
@@ -398,7 +403,7 @@ impl RunDir {
     pub fn save_trial(
         &self,
         trial: usize,
-        gdm: &crate::Gdm,
+        gdm: &crate::learner::Model,
         record: &TrialRecord,
     ) -> Result<(), ExperimentError> {
         let model = self.dir.join(model_file(trial));
@@ -496,6 +501,7 @@ fn difference(a: &Run, b: &Run) -> Option<String> {
         };
     }
     same!("scenario", ma.scenario, mb.scenario);
+    same!("learner", ma.learner, mb.learner);
     same!("encoder", ma.encoder, mb.encoder);
     same!("dataset", ma.dataset, mb.dataset);
     same!("replay", ma.replay, mb.replay);
@@ -726,6 +732,7 @@ mod tests {
             encoder: "good".into(),
             dataset: "/d".into(),
             seed: seeds[0],
+            learner: Default::default(),
             replay,
             context: true,
             epochs: 1,
@@ -746,6 +753,7 @@ mod tests {
             eval_samples: 3000,
             train_samples: 0,
             validate: false,
+            learner: Default::default(),
             hyperparameters_from: "preset".into(),
             ae_checkpoint: None,
             ae_checkpoint_fnv1a: None,
@@ -789,6 +797,10 @@ mod tests {
         other.config.gdm.episodic.activation_threshold = 0.9;
         let e = err(&[run("a", &[0], true), other]);
         assert!(e.contains("hyperparameters"), "{e}");
+        let mut slda = run("d", &[6], true);
+        slda.metrics.learner = crate::learner::LearnerKind::Slda;
+        let e = err(&[run("a", &[0], true), slda]);
+        assert!(e.contains("learner: Gdm vs Slda"), "{e}");
         assert!(err(&[]).contains("no runs"));
     }
 

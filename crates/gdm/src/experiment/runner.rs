@@ -1,8 +1,9 @@
 //! The trial runner: a scenario's plan fed to the dual memory step by step, measured after every
 //! step, and the final figures of the trial.
 //!
-//! The algorithm lives in [`crate::Gdm`]; this module only feeds it the plan's sequences in order
-//! (train, replay, end of episode) and evaluates.
+//! The algorithm lives in the learner ([`crate::learner`]: the GDM or a baseline); this module
+//! only feeds it the plan's sequences in order (learn, end of step: replay and end of episode for
+//! the GDM) and evaluates.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -13,7 +14,8 @@ use super::forgetting::Tracker;
 use super::plan::{self, EvalScope, Plan, Scenario};
 use super::records::{Figures, StepRecord, TrialRecord};
 use super::{ExperimentError, StepProgress, Table};
-use crate::{Gdm, GdmConfig, PredictOptions, Prediction, Sample, Scores, TrainStats};
+use crate::learner::{Learner, LearnerKind, Model};
+use crate::{GdmConfig, PredictOptions, Prediction, Sample, Scores, TrainStats};
 
 /// Everything one trial needs besides the data.
 #[derive(Clone, Debug)]
@@ -38,6 +40,8 @@ pub(crate) struct TrialSettings {
     pub seed: u64,
     /// Validation mode: the test held-out instances are left out and others stand in for them.
     pub validate: bool,
+    /// The learner trained.
+    pub learner: LearnerKind,
 }
 
 /// Whole sequences holding at most `max_samples` samples, drawn at random (seeded) and kept in
@@ -139,12 +143,13 @@ pub(crate) fn run_trial(
     s: &TrialSettings,
     trial: usize,
     progress: &dyn Fn(StepProgress),
-) -> Result<(Gdm, TrialRecord), ExperimentError> {
+) -> Result<(Model, TrialRecord), ExperimentError> {
     let plan = plan_trial(data, s);
     let mut config = s.config.clone();
     config.seed = s.seed;
-    let mut gdm =
-        Gdm::new(config, data.dim).map_err(ExperimentError::gdm("creating the dual memory"))?;
+    let mut gdm = Model::new(s.learner, &config, data.dim).map_err(ExperimentError::gdm(
+        format!("creating the {} learner", s.learner),
+    ))?;
     let started = Instant::now();
     let mut steps = Vec::with_capacity(plan.steps.len());
     let mut seen = Seen::default();
@@ -174,8 +179,8 @@ pub(crate) fn run_trial(
         test_no_context: last.test_no_context,
         new_instance: last.new_instance,
         per_category_test_accuracy: last.per_category_test_accuracy,
-        episodic_nodes: gdm.episodic().len(),
-        semantic_nodes: gdm.semantic().len(),
+        episodic_nodes: gdm.nodes().0,
+        semantic_nodes: gdm.nodes().1,
         model_size_bytes: gdm.size_bytes(),
         inference_ms_per_sample: last.inference_ms_per_sample,
         train_seconds,
@@ -197,7 +202,7 @@ struct Seen {
 /// last) and let `tracker` score the tasks learnt so far (with the step's test predictions
 /// when they serve); the step's record.
 fn run_step(
-    gdm: &mut Gdm,
+    gdm: &mut Model,
     data: &Table<'_>,
     s: &TrialSettings,
     plan: &Plan,
@@ -231,8 +236,8 @@ fn run_step(
         step: k + 1,
         label: step.label.clone(),
         train_samples: ts.samples,
-        episodic_nodes: gdm.episodic().len(),
-        semantic_nodes: gdm.semantic().len(),
+        episodic_nodes: gdm.nodes().0,
+        semantic_nodes: gdm.nodes().1,
         quantization_error_em: ts.quantization_error_em,
         quantization_error_sm: ts.quantization_error_sm,
         train: train.as_ref().map(figures),
@@ -244,7 +249,7 @@ fn run_step(
 /// Trains on the step's sequences (once in batch learning, whose steps are the epochs, else
 /// `epochs` times), replays if asked, ends the episode; the last epoch's statistics.
 fn learn_step(
-    gdm: &mut Gdm,
+    gdm: &mut Model,
     data: &Table<'_>,
     s: &TrialSettings,
     step: &plan::Step,
@@ -258,15 +263,12 @@ fn learn_step(
     let mut train_stats = None;
     for _ in 0..epochs {
         train_stats = Some(
-            gdm.train(&samples)
+            gdm.learn(&samples)
                 .map_err(ExperimentError::gdm(format!("training on {}", step.label)))?,
         );
     }
-    if s.replay {
-        gdm.replay()
-            .map_err(ExperimentError::gdm("intrinsic replay"))?;
-    }
-    gdm.end_episode();
+    gdm.end_step(s.replay)
+        .map_err(ExperimentError::gdm("intrinsic replay"))?;
     Ok(train_stats.expect("at least one epoch"))
 }
 
@@ -281,7 +283,7 @@ struct TestEvaluation {
 /// everything seen) and on the test set (scoped as the plan says; `None` when empty), each
 /// subsampled to `eval_samples` except the last step's test set.
 fn evaluate_step(
-    gdm: &Gdm,
+    gdm: &Model,
     data: &Table<'_>,
     s: &TrialSettings,
     plan: &Plan,
@@ -347,7 +349,7 @@ struct FinalFigures {
 /// Final figures: test (with and without temporal context), new instances, per category, and
 /// the inference time per test sample.
 fn final_figures(
-    gdm: &Gdm,
+    gdm: &Model,
     data: &Table<'_>,
     plan: &Plan,
 ) -> Result<FinalFigures, ExperimentError> {

@@ -43,12 +43,20 @@ from ._errors import (
     LgdmError,
     NotFittedError,
 )
-from ._experiment import SCENARIOS, merge_runs, resume_scenario, run_scenario, scenario_defaults
+from ._experiment import (
+    LEARNERS,
+    SCENARIOS,
+    merge_runs,
+    resume_scenario,
+    run_scenario,
+    scenario_defaults,
+)
 from ._gdm import GDM, PRESETS, Prediction, config
 from ._lgdm import __version__
 
 __all__ = [
     "GDM",
+    "LEARNERS",
     "PRESETS",
     "SCENARIOS",
     "CheckpointError",

@@ -17,10 +17,19 @@ from . import _lgdm
 from ._errors import InputError
 from ._gdm import GDM, _config_json, _features, _ids
 
-__all__ = ["SCENARIOS", "merge_runs", "resume_scenario", "run_scenario", "scenario_defaults"]
+__all__ = [
+    "LEARNERS",
+    "SCENARIOS",
+    "merge_runs",
+    "resume_scenario",
+    "run_scenario",
+    "scenario_defaults",
+]
 
 #: The scenario names, in the paper's order.
 SCENARIOS: tuple[str, ...] = tuple(_lgdm.SCENARIOS)
+#: The learner names: the GDM and the baselines (streaming LDA, nearest class mean).
+LEARNERS: tuple[str, ...] = tuple(_lgdm.LEARNERS)
 
 _COLUMNS = ("collection", "category", "instance", "sequence", "frame")
 
@@ -51,6 +60,7 @@ def run_scenario(
     table: Mapping[str, Any],
     scenario: str,
     *,
+    learner: str = "gdm",
     trials: int | None = None,
     seed: int = 0,
     replay: bool | None = None,
@@ -90,6 +100,15 @@ def run_scenario(
     do not depend on it). With ``return_models=True`` the final model of every trial comes
     back too, as :class:`GDM` objects: ``(metrics, models)``.
 
+    ``learner`` is ``"gdm"`` (default) or a baseline on the same features, plans, trials and
+    seeds (:data:`LEARNERS`): ``"slda"`` (streaming linear discriminant analysis) or ``"ncm"``
+    (nearest class mean), each with a per-instance head (the ``instance_accuracy`` and
+    ``category_accuracy_em`` figures) and a per-category head (``category_accuracy_sm``), as
+    ``lgdm train --learner``. A baseline has no replay (``replay=True`` is refused), no temporal
+    context and no hyperparameters (``preset`` and overrides are refused), and its models are
+    not :class:`GDM` objects (``return_models=True`` is refused; with ``out=`` they are saved in
+    the run directory).
+
     With ``out=`` the run writes a run directory as ``lgdm train --out`` does — ``config.toml``
     first, each trial's model and record as it finishes, then ``metrics.json`` and
     ``summary.txt`` and the plots — so an interrupted run is finished
@@ -105,6 +124,8 @@ def run_scenario(
         raise InputError(f"unknown scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
     config = None
     hyperparameters_from = f"preset {preset or scenario_defaults(scenario)['preset']}"
+    if learner != "gdm":
+        hyperparameters_from = f"none (the {learner} learner has no hyperparameters)"
     if preset is not None or overrides:
         if preset is None:
             preset = scenario_defaults(scenario)["preset"]
@@ -133,6 +154,7 @@ def run_scenario(
         hyperparameters_from=hyperparameters_from,
         out=None if out is None else str(out),
         force=force,
+        learner=learner,
     )
 
 
@@ -216,6 +238,7 @@ def _run(
         instances=[str(i) for i in table.get("instances", [])],
         encoder=str(table.get("encoder", "good")),
         dataset=str(table.get("dataset", "")),
+        return_models=return_models,
         **settings,
     )
     metrics = json.loads(text)

@@ -17,6 +17,7 @@ AUTO_SEQUENCE_BASE: int
 PRESETS: list[str]
 #: Names of the scenarios, in the paper's order.
 SCENARIOS: list[str]
+LEARNERS: list[str]
 
 def config_json(text: str) -> str:
     """Parses a config document (JSON, optional ``"preset"`` key, any subset of fields),
@@ -203,6 +204,8 @@ def run_scenario(
     out: str | None = None,
     force: bool = False,
     resume: bool = False,
+    learner: str | None = None,
+    return_models: bool = False,
 ) -> tuple[str, list[Model]]:
     """Runs a scenario over trials; ``(metrics.json text, final models)``. With ``out`` it
     writes (``resume``: finishes) a run directory as ``lgdm train`` does."""
