@@ -162,7 +162,10 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
             let m = &t["forgetting"][kind];
             let tasks = m["tasks"].as_array().unwrap().len();
             let rows = m["accuracy"].as_array().unwrap();
-            assert!(tasks >= 1 && rows.len() == tasks, "{scenario}: {kind} matrix");
+            assert!(
+                tasks >= 1 && rows.len() == tasks,
+                "{scenario}: {kind} matrix"
+            );
             assert!(rows.iter().all(|r| r.as_array().unwrap().len() == tasks));
             assert_eq!(
                 m["measured_after_step"].as_array().unwrap().last().unwrap(),
