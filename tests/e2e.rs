@@ -157,6 +157,25 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
             t["per_category_test_accuracy"].as_array().unwrap().len(),
             10
         );
+        // The accuracy matrices: T × T over the tasks, the last row measured after the last step.
+        for kind in ["categories", "instances"] {
+            let m = &t["forgetting"][kind];
+            let tasks = m["tasks"].as_array().unwrap().len();
+            let rows = m["accuracy"].as_array().unwrap();
+            assert!(
+                tasks >= 1 && rows.len() == tasks,
+                "{scenario}: {kind} matrix"
+            );
+            assert!(rows.iter().all(|r| r.as_array().unwrap().len() == tasks));
+            assert_eq!(
+                m["measured_after_step"].as_array().unwrap().last().unwrap(),
+                steps.len()
+            );
+            assert!(m["average_accuracy"].is_number(), "{scenario}: {kind} ACC");
+        }
+    }
+    for kind in ["categories", "instances"] {
+        assert!(a["summary"]["forgetting"][kind]["average_forgetting"].is_object());
     }
     // Above chance (10 categories: 10 %; 20 trained instances: 5 %) by a clear margin.
     let s = &a["summary"];
@@ -195,12 +214,15 @@ fn run_scenario(scenario: &str, extra: &[&str]) {
 
 /// A training run's plots show its series: G-EM and G-SM node counts and quantization errors,
 /// the five accuracy series (train instance and category, test instance and category by both
-/// memories), and a bar per category with a test accuracy above zero.
+/// memories), a bar per category with a test accuracy above zero, and the accuracy matrices.
 fn assert_run_plots(dir: &Path) {
     assert_plot(&dir.join("nodes.png"), 2);
     assert_plot(&dir.join("accuracy.png"), 5);
     assert_plot(&dir.join("quantization_error.png"), 2);
     assert_plot(&dir.join("category_accuracy.png"), 1);
+    for name in ["forgetting_categories.png", "forgetting_instances.png"] {
+        assert!(dir.join(name).is_file(), "no {name}");
+    }
 }
 
 #[test]
