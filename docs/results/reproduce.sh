@@ -24,6 +24,7 @@ TABLES=(
   "recognition-paper-preset|GOOD, about a day|Recognition on the paper preset (both tables)"
   "recognition-ae-vs-good|ae|Recognition with the network's feature: ae against GOOD, NI"
   "forgetting-nc|a minute|Forgetting in NC: replay and temporal context (small dataset)"
+  "learners|ycb, about an hour|GDM against streaming LDA and nearest class mean (embedded default, ycb preset)"
   "grasp-network|ae, ycb, about 2 hours|The shipped checkpoint and its rectangle metric"
   "network-vs-analytic|ae, ycb|The robot with the network's grasps, against analytic and random"
   "others-analytic|ae, ycb|The network against the analytic source on the other YCB meshes"
@@ -73,6 +74,21 @@ table_forgetting_nc() {
   echo "lgdm train --scenario nc --trials 5 --no-replay --out $t/no-replay --progress none"
   echo "lgdm train --scenario nc --trials 5 --no-context --out $t/no-context --progress none"
   echo "lgdm train --scenario nc --trials 5 --no-replay --no-context --out $t/neither --progress none"
+}
+
+table_learners() {
+  local t=runs/learners s l
+  for s in ni nc nic; do
+    for l in gdm slda ncm; do
+      echo "lgdm train --scenario $s --learner $l --trials 5 --out $t/default-$s-$l --progress none"
+    done
+  done
+  echo '[ -d ycb20 ] || lgdm gen-dataset --preset ycb --frames 20 --out ycb20/ --progress none'
+  for s in ni nc nic; do
+    for l in gdm slda ncm; do
+      echo "lgdm train --dataset ycb20/ --scenario $s --learner $l --trials 3 --out $t/ycb-$s-$l --progress none"
+    done
+  done
 }
 
 table_grasp_network() {
