@@ -258,6 +258,30 @@ def gaussian_smooth(image: np.ndarray | torch.Tensor, sigma: float) -> torch.Ten
     return t[:, 0][0] if squeeze else t[:, 0]
 
 
+def _smooth_sequential(image: np.ndarray, sigma: float) -> np.ndarray:
+    """``gaussian_smooth`` of one (H, W) map, summed tap by tap in float32: along rows, then
+    columns, each output the running sum over the kernel in order. The same operations in the
+    same order as the Rust decoder (lgdm_pointcloud::grasp::decode), so both find the same
+    peaks on flat tops, whatever torch's convolution does."""
+    a = np.asarray(image, dtype=np.float32)
+    if sigma <= 0:
+        return a.copy()
+    radius = max(int(4 * sigma + 0.5), 1)
+    k = torch.arange(-radius, radius + 1, dtype=torch.float32)
+    k = torch.exp(-0.5 * (k / sigma) ** 2)
+    k = (k / k.sum()).numpy()
+    rows, cols = a.shape
+    xi = np.clip(np.arange(cols) - radius, 0, cols - 1)
+    yi = np.clip(np.arange(rows) - radius, 0, rows - 1)
+    tmp = np.zeros_like(a)
+    for j, w in enumerate(k):
+        tmp = tmp + w * a[:, np.clip(xi + j, 0, cols - 1)]
+    out = np.zeros_like(a)
+    for j, w in enumerate(k):
+        out = out + w * tmp[np.clip(yi + j, 0, rows - 1), :]
+    return out
+
+
 def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, width: np.ndarray,
                   num_grasps: int = 1, threshold: float = QUALITY_THRESHOLD,
                   min_distance_px: int = PEAK_MIN_DISTANCE_PX, jaw_px: float | None = None
@@ -274,16 +298,16 @@ def decode_grasps(quality: np.ndarray, cos2t: np.ndarray, sin2t: np.ndarray, wid
     """
     if jaw_px is not None and not (math.isfinite(jaw_px) and jaw_px > 0):
         raise ValueError(f"jaw_px must be a positive number or None, got {jaw_px!r}")
-    q_t = gaussian_smooth(quality, QUALITY_SIGMA_PX)
+    q = _smooth_sequential(quality, QUALITY_SIGMA_PX)
     k = 2 * min_distance_px + 1
-    local_max = F.max_pool2d(q_t[None, None], k, stride=1, padding=min_distance_px)[0, 0]
-    q = q_t.numpy()
+    local_max = F.max_pool2d(torch.from_numpy(q)[None, None], k, stride=1,
+                             padding=min_distance_px)[0, 0]
     rows, cols = np.nonzero((q >= local_max.numpy()) & (q >= threshold))
     if len(rows) == 0:
         return []
-    c = gaussian_smooth(cos2t, QUALITY_SIGMA_PX).numpy()
-    s = gaussian_smooth(sin2t, QUALITY_SIGMA_PX).numpy()
-    wd = gaussian_smooth(width, WIDTH_SIGMA_PX).numpy()
+    c = _smooth_sequential(cos2t, QUALITY_SIGMA_PX)
+    s = _smooth_sequential(sin2t, QUALITY_SIGMA_PX)
+    wd = _smooth_sequential(width, WIDTH_SIGMA_PX)
     # Highest score first; ties by row, then column (np.lexsort: last key is primary).
     scores = q[rows, cols]
     order = np.lexsort((cols, rows, -scores))
