@@ -133,9 +133,36 @@ def test_values_of_the_wrong_type_name_the_key_the_cells_and_what_was_expected(
     assert not (tmp_path / "cells").exists()
 
 
+def _descendants(pid: int) -> list[int]:
+    """Every living process below ``pid`` (Linux ``/proc``): Ray's raylet and workers may leave
+    the sweep's process group, so a kill of the group alone can leave a cell running."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            # The command name, in parentheses, may hold spaces: the fields follow the last ')'.
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, killed and not yet reaped, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
 def _interrupted_sweep(spec: Path, out: Path, mark: str, finished: str) -> list[str]:
-    """Runs the sweep in its own process group and SIGKILLs it (Ray's processes with it) as
-    soon as a cell holds ``mark`` but not ``finished``; returns those cells' names."""
+    """Runs the sweep in its own process group and SIGKILLs it with every process below it
+    (Ray's) as soon as a cell holds ``mark`` but not ``finished``; returns those cells' names."""
     import os
     import signal
     import time
@@ -155,9 +182,17 @@ def _interrupted_sweep(spec: Path, out: Path, mark: str, finished: str) -> list[
                 break
             time.sleep(0.02)
     finally:
+        below = _descendants(proc.pid)
         os.killpg(proc.pid, signal.SIGKILL)
+        for pid in below:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         proc.wait()
-    time.sleep(1)  # Ray's workers die with their raylet
+    # Nothing the sweep started may still write a cell when the resumed sweep looks at it.
+    while any(_alive(pid) for pid in below) and time.monotonic() < deadline:
+        time.sleep(0.05)
     return [c.name for c in (out / "cells").glob("*")
             if (c / mark).is_file() and not (c / finished).is_file()]  # fmt: skip
 

@@ -312,6 +312,11 @@ def _run_cell(
     kwargs = {**spec.get("base", {}), **dict(cell.setting), "seed": cell.seed, "out": out}
     train = spec["sweep"]["command"] == "train"
     if start == "resume":
+        # A run the interrupted sweep left behind (a Ray worker that outlived its driver) may
+        # have finished it since the sweep looked: then there is nothing to resume.
+        done = _finished(Path(out))
+        if done is not None:
+            return done
         function = _resume_train_cell if train else _resume_sim_cell
         kwargs = {"out": out, "dataset": kwargs.get("dataset")}
     elif train:
