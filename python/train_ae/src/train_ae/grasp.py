@@ -271,8 +271,8 @@ def _smooth_sequential(image: np.ndarray, sigma: float) -> np.ndarray:
     k = torch.exp(-0.5 * (k / sigma) ** 2)
     k = (k / k.sum()).numpy()
     rows, cols = a.shape
-    xi = np.clip(np.arange(cols) - radius, 0, cols - 1)
-    yi = np.clip(np.arange(rows) - radius, 0, rows - 1)
+    # Tap j of output x reads x - radius + j, edge pixels replicated (clipped once, here).
+    xi, yi = np.arange(cols) - radius, np.arange(rows) - radius
     tmp = np.zeros_like(a)
     for j, w in enumerate(k):
         tmp = tmp + w * a[:, np.clip(xi + j, 0, cols - 1)]
