@@ -40,7 +40,11 @@ pub fn summary_table(r: &RunResults) -> String {
         r.run.objects,
         r.run.library_size
     );
-    let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
+    let _ = writeln!(
+        out,
+        "{:<28} rate (95 % Wilson interval, n; clustered: 95 % bootstrap over rounds)",
+        ""
+    );
     for (name, rate) in [
         ("grasp success", &s.grasp_success_rate),
         ("placement success", &s.placement_success_rate),
@@ -155,7 +159,11 @@ fn packing_section(out: &mut String, r: &RunResults) {
             basket_name(spec.target_basket),
             basket_name(spec.other_basket)
         );
-        let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
+        let _ = writeln!(
+            out,
+            "{:<28} rate (95 % Wilson interval, n; clustered: 95 % bootstrap over rounds)",
+            ""
+        );
         let _ = writeln!(
             out,
             "{:<28} {}",
@@ -247,7 +255,11 @@ fn recognition_section(out: &mut String, r: &RunResults) {
                 "the teacher's lessons"
             }
         );
-        let _ = writeln!(out, "{:<28} rate (95 % Wilson interval, n)", "");
+        let _ = writeln!(
+            out,
+            "{:<28} rate (95 % Wilson interval, n; clustered: 95 % bootstrap over rounds)",
+            ""
+        );
         for (name, rate) in [
             ("recognition (category)", &s.recognition_accuracy),
             ("recognition (instance)", &s.instance_recognition_accuracy),

@@ -1,8 +1,10 @@
 //! What a run produced: one [`AttemptRecord`] per attempt, one [`RoundRecord`] per round, the
 //! [`Summary`] computed from them ([`summarize`]: grasp success, placement success, the
 //! fraction of objects cleared and the paper's contact-only success, each a [`Rate`] with its
-//! Wilson 95 % interval, per category and per failure reason; recognition, packing and
-//! arrival rates when the run had them) and [`RunResults`], everything `results.json` holds.
+//! Wilson 95 % interval and, since the attempts of a round share a table and its retries an
+//! object, a seeded bootstrap interval over rounds; per category and per failure reason;
+//! recognition, packing and arrival rates when the run had them) and [`RunResults`], everything
+//! `results.json` holds.
 //! Also the numbers behind the plots ([`RunResults::learning_curve`]).
 //!
 //! Everything is deterministic except the fields named `wall` (wall-clock seconds), which a
@@ -10,7 +12,7 @@
 //!
 //! ```
 //! use lgdm_sim::run::results::{Rate, summarize};
-//! let summary = summarize(&[], &[], false);
+//! let summary = summarize(&[], &[], false, 0);
 //! assert_eq!(summary.attempts, 0);
 //! assert_eq!(summary.grasp_success_rate, Rate::new(0, 0));
 //! assert!(summary.packing.is_none());
@@ -249,8 +251,87 @@ impl Proposals {
 
 /// Summarises attempts and rounds; `packing`: the run is a packing run (its summary then holds
 /// the packing rates and `misrecognised` among the failure reasons, even when no attempt
-/// reached an object).
-pub fn summarize(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bool) -> Summary {
+/// reached an object). The run's overall rates carry a bootstrap interval over its rounds
+/// ([`Rate::with_clusters`], seeded by the run's `seed`).
+pub fn summarize(
+    attempts: &[AttemptRecord],
+    rounds: &[RoundRecord],
+    packing: bool,
+    seed: u64,
+) -> Summary {
+    let mut summary = summarize_pooled(attempts, rounds, packing);
+    // Per round (in round order): (successes, trials) of a rate over attempts, over first
+    // looks, or over the objects set on the table.
+    let mut order: BTreeMap<usize, usize> = BTreeMap::new();
+    for r in rounds {
+        let next = order.len();
+        order.entry(r.round).or_insert(next);
+    }
+    for a in attempts {
+        let next = order.len();
+        order.entry(a.round).or_insert(next);
+    }
+    let per_round = |hit: &dyn Fn(&AttemptRecord) -> Option<bool>| {
+        let mut c = vec![(0usize, 0usize); order.len()];
+        for a in attempts {
+            if let Some(h) = hit(a) {
+                let i = order[&a.round];
+                c[i].0 += usize::from(h);
+                c[i].1 += 1;
+            }
+        }
+        c
+    };
+    let per_object = |hit: &dyn Fn(&AttemptRecord) -> bool| {
+        let mut c = vec![(0usize, 0usize); order.len()];
+        for r in rounds {
+            c[order[&r.round]].1 += r.objects.len();
+        }
+        for a in attempts.iter().filter(|a| hit(a)) {
+            c[order[&a.round]].0 += 1;
+        }
+        c
+    };
+    let s = &mut summary;
+    let cluster = |rate: Rate, c: Vec<(usize, usize)>| rate.with_clusters(&c, seed);
+    s.grasp_success_rate = cluster(s.grasp_success_rate, per_round(&|a| Some(a.grasp_success)));
+    s.placement_success_rate = cluster(
+        s.placement_success_rate,
+        per_round(&|a| Some(a.placement_success)),
+    );
+    s.contact_only_success_rate = cluster(
+        s.contact_only_success_rate,
+        per_round(&|a| Some(a.contact_only_success)),
+    );
+    s.cleared_fraction = cluster(s.cleared_fraction, {
+        let mut c = vec![(0usize, 0usize); order.len()];
+        for r in rounds {
+            c[order[&r.round]] = (r.placed, r.objects.len());
+        }
+        c
+    });
+    fn first_look(a: &AttemptRecord) -> Option<&RecognitionRecord> {
+        a.recognition.as_ref().filter(|r| r.first_look)
+    }
+    s.recognition_accuracy = s
+        .recognition_accuracy
+        .map(|r| cluster(r, per_round(&|a| first_look(a).map(|l| l.category_correct))));
+    s.instance_recognition_accuracy = s
+        .instance_recognition_accuracy
+        .map(|r| cluster(r, per_round(&|a| first_look(a).map(|l| l.instance_correct))));
+    s.teacher_intervention_rate = s
+        .teacher_intervention_rate
+        .map(|r| cluster(r, per_round(&|a| first_look(a).map(|l| l.teacher))));
+    let packed = |a: &AttemptRecord| a.packing.as_ref().is_some_and(|p| p.success);
+    if let Some(p) = s.packing.as_mut() {
+        p.success_rate = cluster(p.success_rate, per_round(&|a| Some(packed(a))));
+        p.packed_fraction = cluster(p.packed_fraction, per_object(&packed));
+    }
+    summary
+}
+
+/// [`summarize`] without the intervals over rounds.
+fn summarize_pooled(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bool) -> Summary {
     let count = |f: &dyn Fn(&AttemptRecord) -> bool, of: &[&AttemptRecord]| {
         of.iter().filter(|a| f(a)).count()
     };
@@ -579,20 +660,38 @@ mod tests {
             attempt(2, 1, true, None),
         ];
         let rounds = [round(0, 2, 1), round(1, 3, 1)];
-        let s = summarize(&attempts, &rounds, false);
-        assert_eq!(s.grasp_success_rate, Rate::new(2, 3));
-        assert_eq!(s.placement_success_rate, Rate::new(2, 3));
-        assert_eq!(s.cleared_fraction, Rate::new(2, 5));
+        let s = summarize(&attempts, &rounds, false, 0);
+        // The counts pooled, and the interval over the two rounds next to Wilson's.
+        let pooled = |r: Rate| Rate {
+            cluster_bootstrap: None,
+            ..r
+        };
+        assert_eq!(pooled(s.grasp_success_rate), Rate::new(2, 3));
+        assert_eq!(pooled(s.placement_success_rate), Rate::new(2, 3));
+        assert_eq!(pooled(s.cleared_fraction), Rate::new(2, 5));
+        // Rounds: grasps (1 of 2, 1 of 1), objects cleared (1 of 2, 1 of 3).
+        let g = s.grasp_success_rate.cluster_bootstrap.unwrap();
+        assert_eq!((g.clusters, g.low, g.high), (2, 0.5, 1.0));
+        let c = s.cleared_fraction.cluster_bootstrap.unwrap();
+        assert_eq!((c.clusters, c.low, c.high), (2, 1.0 / 3.0, 0.5));
+        assert_eq!(s, summarize(&attempts, &rounds, false, 0));
+        assert!(
+            s.per_category["mug"]
+                .grasp_success_rate
+                .cluster_bootstrap
+                .is_none()
+        );
         assert_eq!(s.per_category["mug"].attempts, 3);
         assert_eq!(s.failure_reasons["missed"], 1);
         assert!(!s.failure_reasons.contains_key("misrecognised"));
         assert!(s.recognition_accuracy.is_none());
         // A packing run lists its verdict and rates even with no attempt at an object.
-        let s = summarize(&attempts, &rounds, true);
+        let s = summarize(&attempts, &rounds, true, 0);
         assert_eq!(s.failure_reasons["misrecognised"], 0);
         let p = s.packing.unwrap();
-        assert_eq!(p.success_rate, Rate::new(0, 3));
-        assert_eq!(p.packed_fraction, Rate::new(0, 5));
+        assert_eq!(pooled(p.success_rate), Rate::new(0, 3));
+        assert_eq!(pooled(p.packed_fraction), Rate::new(0, 5));
+        assert_eq!(p.packed_fraction.cluster_bootstrap.unwrap().clusters, 2);
     }
 
     #[test]
@@ -604,8 +703,12 @@ mod tests {
             attempt(1, 0, false, Some(look(false, true))),
             attempt(2, 0, true, Some(again)),
         ];
-        let s = summarize(&attempts, &[round(0, 2, 2)], false);
-        assert_eq!(s.recognition_accuracy, Some(Rate::new(1, 2)));
+        let s = summarize(&attempts, &[round(0, 2, 2)], false, 0);
+        let r = s.recognition_accuracy.unwrap();
+        assert_eq!((r.successes, r.trials), (1, 2));
+        // One round: its rate at both ends.
+        let c = r.cluster_bootstrap.unwrap();
+        assert_eq!((c.clusters, c.low, c.high), (1, 0.5, 0.5));
         assert_eq!(s.teacher_interventions, Some(1));
     }
 
@@ -630,7 +733,7 @@ mod tests {
                 packing: None,
                 arrival: None,
             },
-            summary: summarize(&attempts, &[round(0, 4, 4)], false),
+            summary: summarize(&attempts, &[round(0, 4, 4)], false, 0),
             attempts,
             rounds: vec![round(0, 4, 4)],
             config: SimConfig::default(),

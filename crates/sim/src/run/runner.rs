@@ -989,7 +989,7 @@ pub(crate) fn play(
         memory: runner.memory.clone(),
     });
     let attempts = runner.attempts;
-    let mut summary = summarize(&attempts, &rounds, spec.packing.is_some());
+    let mut summary = summarize(&attempts, &rounds, spec.packing.is_some(), spec.seed);
     if let Some(e) = &arrival_evaluation {
         summary.early_category_accuracy_at_end = Some(e.at_end.early_category_accuracy);
         summary.early_instance_accuracy_at_end = Some(e.at_end.early_instance_accuracy);
