@@ -23,9 +23,12 @@
 //!   rests, which is removed once it rests again (the reference's `create_pile`).
 //!
 //! In packed and pile rounds every attempt starts from a fresh overview image; the grasp tried
-//! is the best over all objects after no failure, the second best after one, … A round ends
-//! when the table is clear, after [`ScenarioConfig::max_consecutive_failures`] failures in a
-//! row, or after [`ScenarioConfig::max_attempts_per_round`] attempts. Placed objects are
+//! is the best over all objects that did not fail earlier in the round (within
+//! [`ScenarioConfig::failed_grasp_radius_m`] and [`ScenarioConfig::failed_grasp_angle_deg`];
+//! with that memory off, the best after no failure, the second best after one, …). A round
+//! ends when the table is clear, after [`ScenarioConfig::max_consecutive_failures`] failures in
+//! a row, when a look finds no grasp left, or after
+//! [`ScenarioConfig::max_attempts_per_round`] attempts. Placed objects are
 //! removed, and so are objects that left the table.
 //!
 //! ```
