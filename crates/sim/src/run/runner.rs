@@ -3,7 +3,8 @@
 //! [`run_trials`] plays `rounds` rounds (round r seeded with `derive_seed(seed, …, r)`, so the same
 //! seed gives the same rounds): set the table ([`crate::tasks::scenario`]), look with the overview
 //! camera, take a close-up crop per object ([`crate::perception`]), ask the source for ranked
-//! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends. It returns
+//! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends, never trying
+//! again a grasp that failed in the round ([`crate::grasping::failed`]). It returns
 //! [`RunResults`] ([`crate::run::results`]).
 //!
 //! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognizer`]): before
