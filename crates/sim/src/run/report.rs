@@ -100,6 +100,22 @@ pub fn summary_table(r: &RunResults) -> String {
         "grasp proposals refused before a try (a pad would close on air): {} of {} planned",
         s.proposals.refused, s.proposals.planned
     );
+    let scenario = &r.config.scenario;
+    let memory = match scenario.failed_grasp_radius_m > 0.0 {
+        true => format!(
+            "not tried again (within {} m and {}°): {} candidates skipped",
+            scenario.failed_grasp_radius_m,
+            scenario.failed_grasp_angle_deg,
+            s.proposals.repeat_skipped
+        ),
+        false => "memory off".to_string(),
+    };
+    let _ = writeln!(
+        out,
+        "failed grasps {memory}; attempts that repeated one (within {} m and {}°): {} ({} failed \
+         again)",
+        s.repeats.radius_m, s.repeats.angle_deg, s.repeats.attempts, s.repeats.failed_again
+    );
     if s.proposals.checked > 0 {
         let _ = writeln!(
             out,

@@ -12,7 +12,8 @@
 //!
 //! ```
 //! use lgdm_sim::run::results::{Rate, summarize};
-//! let summary = summarize(&[], &[], false, 0);
+//! use lgdm_sim::tasks::scenario::ScenarioConfig;
+//! let summary = summarize(&[], &[], false, &ScenarioConfig::default(), 0);
 //! assert_eq!(summary.attempts, 0);
 //! assert_eq!(summary.grasp_success_rate, Rate::new(0, 0));
 //! assert!(summary.packing.is_none());
@@ -28,13 +29,14 @@ use serde::{Deserialize, Serialize};
 pub use lgdm_base::stats::{Rate, wilson_interval};
 
 use crate::grasping::attempt::{FailureReason, GraspPlan, Measurements};
+use crate::grasping::failed::FailedGrasps;
 use crate::recognition::config::RecognitionConfig;
 use crate::recognition::labels::Labels;
 use crate::recognition::recognizer::{MemoryPoint, RecognitionRecord};
 use crate::run::config::SimConfig;
 use crate::tasks::arrival::{Arrival, ArrivalEvaluation};
 use crate::tasks::packing::{PackingRecord, PackingSpec, PackingSummary};
-use crate::tasks::scenario::Scenario;
+use crate::tasks::scenario::{Scenario, ScenarioConfig};
 use crate::timing::WallTimes;
 
 /// Version of the `results.json` layout.
@@ -194,6 +196,9 @@ pub struct Summary {
     /// Every attempt's [`AttemptRecord::proposals`], summed.
     #[serde(default)]
     pub proposals: Proposals,
+    /// Attempts that tried a grasp that had failed earlier in their round.
+    #[serde(default)]
+    pub repeats: Repeats,
     /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
     /// (one per object per round: the first attempt at it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -240,6 +245,12 @@ pub struct Proposals {
     /// Of those, refused by that check (and never planned).
     #[serde(default)]
     pub check_refused: usize,
+    /// Candidates skipped, before planning, because a grasp at the same place and angle had
+    /// failed earlier in the round ([`crate::grasping::failed`]; `[scenario]
+    /// failed_grasp_radius_m`). Cluttered rounds count them in the attempt whose choice skipped
+    /// them; isolated ones in the failed attempt after which they were skipped.
+    #[serde(default)]
+    pub repeat_skipped: usize,
 }
 
 impl Proposals {
@@ -249,17 +260,64 @@ impl Proposals {
     }
 }
 
+/// Attempts that tried a grasp at the place and angle of one that failed (was not placed)
+/// earlier in their round, as [`crate::grasping::failed::FailedGrasps`] judges it with
+/// `radius_m` and `angle_deg`: with the memory on, none.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Repeats {
+    /// The radius they were judged with (m): the run's `[scenario] failed_grasp_radius_m`, or
+    /// its default when the run had the memory off.
+    pub radius_m: f64,
+    /// The angle they were judged with (degrees), likewise.
+    pub angle_deg: f64,
+    /// Attempts whose grasp was within that radius and angle of a grasp that failed earlier in
+    /// the round.
+    pub attempts: usize,
+    /// Of those, attempts that failed again.
+    pub failed_again: usize,
+}
+
+/// Counts the attempts that repeated a failed grasp of their round (see [`Repeats`]), judged
+/// with `radius_m` and `angle_deg`.
+pub fn count_repeats(attempts: &[AttemptRecord], radius_m: f64, angle_deg: f64) -> Repeats {
+    let mut repeats = Repeats {
+        radius_m,
+        angle_deg,
+        ..Repeats::default()
+    };
+    let mut failed = FailedGrasps::new(radius_m, angle_deg);
+    let mut round = None;
+    for a in attempts {
+        if round != Some(a.round) {
+            failed.clear();
+            round = Some(a.round);
+        }
+        let Some(grasp) = &a.grasp else { continue };
+        let g = &grasp.plan.grasp;
+        if failed.covers(g.position_m, g.yaw_rad) {
+            repeats.attempts += 1;
+            repeats.failed_again += usize::from(!a.placement_success);
+        }
+        if !a.placement_success {
+            failed.remember(g.position_m, g.yaw_rad);
+        }
+    }
+    repeats
+}
+
 /// Summarises attempts and rounds; `packing`: the run is a packing run (its summary then holds
 /// the packing rates and `misrecognised` among the failure reasons, even when no attempt
-/// reached an object). The run's overall rates carry a bootstrap interval over its rounds
-/// ([`Rate::with_clusters`], seeded by the run's `seed`).
+/// reached an object); `scenario`: the run's, whose failed-grasp memory judges the repeats
+/// ([`Repeats`]; the default memory's when the run's was off). The run's overall rates carry a
+/// bootstrap interval over its rounds ([`Rate::with_clusters`], seeded by the run's `seed`).
 pub fn summarize(
     attempts: &[AttemptRecord],
     rounds: &[RoundRecord],
     packing: bool,
+    scenario: &ScenarioConfig,
     seed: u64,
 ) -> Summary {
-    let mut summary = summarize_pooled(attempts, rounds, packing);
+    let mut summary = summarize_pooled(attempts, rounds, packing, scenario);
     // Per round (in round order): (successes, trials) of a rate over attempts, over first
     // looks, or over the objects set on the table.
     let mut order: BTreeMap<usize, usize> = BTreeMap::new();
@@ -331,7 +389,18 @@ pub fn summarize(
 }
 
 /// [`summarize`] without the intervals over rounds.
-fn summarize_pooled(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing: bool) -> Summary {
+fn summarize_pooled(
+    attempts: &[AttemptRecord],
+    rounds: &[RoundRecord],
+    packing: bool,
+    scenario: &ScenarioConfig,
+) -> Summary {
+    let judge = match scenario.failed_grasp_radius_m > 0.0 {
+        true => scenario,
+        false => &ScenarioConfig::default(),
+    };
+    let (repeats_radius_m, repeats_angle_deg) =
+        (judge.failed_grasp_radius_m, judge.failed_grasp_angle_deg);
     let count = |f: &dyn Fn(&AttemptRecord) -> bool, of: &[&AttemptRecord]| {
         of.iter().filter(|a| f(a)).count()
     };
@@ -401,7 +470,9 @@ fn summarize_pooled(attempts: &[AttemptRecord], rounds: &[RoundRecord], packing:
             refused: attempts.iter().map(|a| a.proposals.refused).sum(),
             checked: attempts.iter().map(|a| a.proposals.checked).sum(),
             check_refused: attempts.iter().map(|a| a.proposals.check_refused).sum(),
+            repeat_skipped: attempts.iter().map(|a| a.proposals.repeat_skipped).sum(),
         },
+        repeats: count_repeats(attempts, repeats_radius_m, repeats_angle_deg),
         packing: packing.then(|| {
             let packed: Vec<(Option<&str>, &PackingRecord)> = attempts
                 .iter()
@@ -589,6 +660,7 @@ impl RunResults {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::perception::WorldGrasp;
     use crate::recognition::recognizer::Guess;
 
     fn look(correct: bool, teacher: bool) -> RecognitionRecord {
@@ -660,7 +732,7 @@ mod tests {
             attempt(2, 1, true, None),
         ];
         let rounds = [round(0, 2, 1), round(1, 3, 1)];
-        let s = summarize(&attempts, &rounds, false, 0);
+        let s = summarize(&attempts, &rounds, false, &ScenarioConfig::default(), 0);
         // The counts pooled, and the interval over the two rounds next to Wilson's.
         let pooled = |r: Rate| Rate {
             cluster_bootstrap: None,
@@ -674,7 +746,10 @@ mod tests {
         assert_eq!((g.clusters, g.low, g.high), (2, 0.5, 1.0));
         let c = s.cleared_fraction.cluster_bootstrap.unwrap();
         assert_eq!((c.clusters, c.low, c.high), (2, 1.0 / 3.0, 0.5));
-        assert_eq!(s, summarize(&attempts, &rounds, false, 0));
+        assert_eq!(
+            s,
+            summarize(&attempts, &rounds, false, &ScenarioConfig::default(), 0)
+        );
         assert!(
             s.per_category["mug"]
                 .grasp_success_rate
@@ -686,12 +761,77 @@ mod tests {
         assert!(!s.failure_reasons.contains_key("misrecognised"));
         assert!(s.recognition_accuracy.is_none());
         // A packing run lists its verdict and rates even with no attempt at an object.
-        let s = summarize(&attempts, &rounds, true, 0);
+        let s = summarize(&attempts, &rounds, true, &ScenarioConfig::default(), 0);
         assert_eq!(s.failure_reasons["misrecognised"], 0);
         let p = s.packing.unwrap();
         assert_eq!(pooled(p.success_rate), Rate::new(0, 3));
         assert_eq!(pooled(p.packed_fraction), Rate::new(0, 5));
         assert_eq!(p.packed_fraction.cluster_bootstrap.unwrap().clusters, 2);
+    }
+
+    /// An attempt of round `round` at a grasp centred at `x_m` (world x) with yaw `yaw_rad`.
+    fn tried(round: usize, placed: bool, x_m: f64, yaw_rad: f64) -> AttemptRecord {
+        let grasp = WorldGrasp {
+            position_m: [x_m, -0.52, 0.8],
+            yaw_rad,
+            opening_m: 0.05,
+            quality: 1.0,
+        };
+        AttemptRecord {
+            grasp: Some(GraspRecord {
+                rank: 0,
+                crop: DecodedGrasp {
+                    center_px: [0.0, 0.0],
+                    angle: 0.0,
+                    width_px: 1.0,
+                    jaw_px: 1.0,
+                    quality: 1.0,
+                },
+                plan: GraspPlan {
+                    grasp,
+                    tcp_m: grasp.position_m,
+                    pregrasp_z_m: 1.0,
+                    opening_m: 0.05,
+                    lane_height_m: 0.0,
+                    palm_height_m: 0.0,
+                    tip_height_m: 0.0,
+                    contact_height_m: 0.0,
+                },
+            }),
+            ..attempt(0, round, placed, None)
+        }
+    }
+
+    #[test]
+    fn repeats_are_failed_grasps_of_the_same_round_tried_again() {
+        let pi = std::f64::consts::PI;
+        let attempts = [
+            tried(0, false, 0.0, 0.2),
+            // The same grasp turned a half turn, 1 cm away: a repeat, failed again.
+            tried(0, false, 0.01, 0.2 - pi),
+            // 5 cm away: another grasp, placed.
+            tried(0, true, 0.05, 0.2),
+            // Where it failed, placed this time: a repeat that did not fail again.
+            tried(0, true, 0.0, 0.25),
+            // A new round forgets.
+            tried(1, false, 0.0, 0.2),
+        ];
+        let r = count_repeats(&attempts, 0.02, 15.0);
+        assert_eq!((r.attempts, r.failed_again), (2, 1));
+        // Judged at a radius too small for the second: one repeat.
+        let r = count_repeats(&attempts, 0.005, 15.0);
+        assert_eq!((r.attempts, r.failed_again), (1, 0));
+        // A run with the memory off is judged at the default memory.
+        let off = ScenarioConfig {
+            failed_grasp_radius_m: 0.0,
+            ..ScenarioConfig::default()
+        };
+        let s = summarize(&attempts, &[round(0, 2, 2)], false, &off, 0);
+        assert_eq!(
+            s.repeats.radius_m,
+            ScenarioConfig::default().failed_grasp_radius_m
+        );
+        assert_eq!((s.repeats.attempts, s.repeats.failed_again), (2, 1));
     }
 
     #[test]
@@ -703,7 +843,13 @@ mod tests {
             attempt(1, 0, false, Some(look(false, true))),
             attempt(2, 0, true, Some(again)),
         ];
-        let s = summarize(&attempts, &[round(0, 2, 2)], false, 0);
+        let s = summarize(
+            &attempts,
+            &[round(0, 2, 2)],
+            false,
+            &ScenarioConfig::default(),
+            0,
+        );
         let r = s.recognition_accuracy.unwrap();
         assert_eq!((r.successes, r.trials), (1, 2));
         // One round: its rate at both ends.
@@ -733,7 +879,13 @@ mod tests {
                 packing: None,
                 arrival: None,
             },
-            summary: summarize(&attempts, &[round(0, 4, 4)], false, 0),
+            summary: summarize(
+                &attempts,
+                &[round(0, 4, 4)],
+                false,
+                &ScenarioConfig::default(),
+                0,
+            ),
             attempts,
             rounds: vec![round(0, 4, 4)],
             config: SimConfig::default(),

@@ -3,7 +3,8 @@
 //! [`run_trials`] plays `rounds` rounds (round r seeded with `derive_seed(seed, …, r)`, so the same
 //! seed gives the same rounds): set the table ([`crate::tasks::scenario`]), look with the overview
 //! camera, take a close-up crop per object ([`crate::perception`]), ask the source for ranked
-//! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends. It returns
+//! grasps, and run attempts ([`crate::grasping::attempt`]) until the round ends, never trying
+//! again a grasp that failed in the round ([`crate::grasping::failed`]). It returns
 //! [`RunResults`] ([`crate::run::results`]).
 //!
 //! [`run_pick_place`] adds recognition in the loop ([`crate::recognition::recognizer`]): before
@@ -49,6 +50,7 @@ use rayon::prelude::*;
 use crate::grasping::attempt::{
     AttemptConfig, Cell, Execution, FailureReason, execute, park, plan_grasp,
 };
+use crate::grasping::failed::FailedGrasps;
 use crate::grasping::proposals::checked_grasps;
 use crate::grasping::source::GraspSource;
 use crate::perception::{ObjectView, Perception, PerceptionError, SceneView, WorldGrasp};
@@ -197,6 +199,8 @@ struct Runner<'a, F: FnMut(Progress)> {
     replay_s: f64,
     /// The round's recognitions so far, by object.
     recognised: Vec<(ObjectHandle, RecognitionRecord)>,
+    /// The round's failed grasps ([`crate::grasping::failed`]).
+    failed: FailedGrasps,
 }
 
 /// The timer and counters of one attempt in progress.
@@ -600,6 +604,7 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         let sim_start = cell.world.time_s();
         let first_attempt = self.attempts.len();
         self.recognised.clear();
+        self.failed.clear();
         let mut placed = 0usize;
         let mut left_table = Vec::new();
         let ended_by = match scenario {
@@ -635,8 +640,9 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         Ok((record, setup_s))
     }
 
-    /// A round of the isolated table: one object, its ranked grasps tried in turn, the object
-    /// put back where it rested after each failed try.
+    /// A round of the isolated table: one object, its ranked grasps tried in turn (skipping
+    /// those at the place and angle of one that failed), the object put back where it rested
+    /// after each failed try.
     fn isolated(
         &mut self,
         cell: &mut Cell,
@@ -694,7 +700,10 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
         }
         let views = [view];
         let mut first = Some(clock);
-        for (i, candidate) in candidates.iter().enumerate() {
+        let mut tries = 0usize;
+        let mut next = Some(0);
+        while let Some(i) = next {
+            let candidate = &candidates[i];
             if self.budget_spent() {
                 return Ok(RoundEnd::AttemptBudget);
             }
@@ -709,6 +718,7 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             if done {
                 *placed += 1;
                 cell.world.remove_object(object.handle)?;
+                next = None;
             } else {
                 // Put the object back where it rested.
                 clock.wall.time(Work::Physics, || {
@@ -716,11 +726,21 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
                         .reset_object_pose(object.handle, &object.rest_pose)
                         .map(|()| cell.world.settle())
                 })?;
+                // The next ranked grasp that did not fail already (the object rests where it
+                // did, so the world frame is the object's); those skipped count here.
+                let g = &candidate.world;
+                self.failed.remember(g.position_m, g.yaw_rad);
+                next = (i + 1..candidates.len()).find(|&j| {
+                    let g = &candidates[j].world;
+                    let repeat = self.failed.covers(g.position_m, g.yaw_rad);
+                    clock.proposals.repeat_skipped += usize::from(repeat);
+                    !repeat
+                });
             }
             let at = target.or(Some(object.handle));
             self.record(
                 cell,
-                (round, i),
+                (round, tries),
                 objects,
                 at,
                 Some(grasp),
@@ -729,6 +749,7 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
                 decision,
                 clock,
             );
+            tries += 1;
             if done {
                 return Ok(RoundEnd::Cleared);
             }
@@ -737,8 +758,9 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
     }
 
     /// A round of a cluttered table: until it is clear, the best grasp over every object's
-    /// close-up (after `k` failures in a row the `k`-th best), until too many failures in a
-    /// row, the per-round cap or the run's budget.
+    /// close-up that did not fail earlier in the round (with the memory of failed grasps off:
+    /// after `k` failures in a row the `k`-th best), until too many failures in a row, a look
+    /// with no grasp left, the per-round cap or the run's budget.
     fn clutter(
         &mut self,
         cell: &mut Cell,
@@ -777,15 +799,24 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             let (views, candidates) = self.survey(cell, &mut clock)?;
             tries += 1;
             let at = (round, tries - 1);
-            // The `consecutive`-th of the candidates whose pads close on something (after as
-            // many failures in a row), else the last of them: planned best first, only as far
-            // as needed.
+            // With the memory of failed grasps on, the best candidate that did not fail this
+            // round and whose pads close on something; with it off, the `consecutive`-th of
+            // those (after as many failures in a row), else the last of them. Planned best
+            // first, only as far as needed.
+            let skip = match self.failed.is_on() {
+                true => 0,
+                false => consecutive,
+            };
             let mut chosen = None;
             let mut reaching = 0;
             for c in &candidates {
+                if self.failed.covers(c.world.position_m, c.world.yaw_rad) {
+                    clock.proposals.repeat_skipped += 1;
+                    continue;
+                }
                 if self.reaches(cell, &views[c.view], c, &mut clock) {
                     chosen = Some(c);
-                    if reaching == consecutive {
+                    if reaching == skip {
                         break;
                     }
                     reaching += 1;
@@ -826,6 +857,8 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
                 }
             } else {
                 consecutive += 1;
+                let g = &candidate.world;
+                self.failed.remember(g.position_m, g.yaw_rad);
             }
             clock.wall.time(Work::Physics, || cell.world.settle());
             self.record(
@@ -924,6 +957,10 @@ pub(crate) fn play(
         recognizer,
         replay_s: 0.0,
         recognised: Vec::new(),
+        failed: FailedGrasps::new(
+            spec.config.scenario.failed_grasp_radius_m,
+            spec.config.scenario.failed_grasp_angle_deg,
+        ),
     };
     let mut rounds = Vec::with_capacity(playable_rounds(spec));
     let (mut setup_s, mut sim_s, mut evaluation_before) = (0.0, 0.0, 0.0);
@@ -989,7 +1026,13 @@ pub(crate) fn play(
         memory: runner.memory.clone(),
     });
     let attempts = runner.attempts;
-    let mut summary = summarize(&attempts, &rounds, spec.packing.is_some(), spec.seed);
+    let mut summary = summarize(
+        &attempts,
+        &rounds,
+        spec.packing.is_some(),
+        &spec.config.scenario,
+        spec.seed,
+    );
     if let Some(e) = &arrival_evaluation {
         summary.early_category_accuracy_at_end = Some(e.at_end.early_category_accuracy);
         summary.early_instance_accuracy_at_end = Some(e.at_end.early_instance_accuracy);

@@ -23,9 +23,12 @@
 //!   rests, which is removed once it rests again (the reference's `create_pile`).
 //!
 //! In packed and pile rounds every attempt starts from a fresh overview image; the grasp tried
-//! is the best over all objects after no failure, the second best after one, … A round ends
-//! when the table is clear, after [`ScenarioConfig::max_consecutive_failures`] failures in a
-//! row, or after [`ScenarioConfig::max_attempts_per_round`] attempts. Placed objects are
+//! is the best over all objects that did not fail earlier in the round (within
+//! [`ScenarioConfig::failed_grasp_radius_m`] and [`ScenarioConfig::failed_grasp_angle_deg`];
+//! with that memory off, the best after no failure, the second best after one, …). A round
+//! ends when the table is clear, after [`ScenarioConfig::max_consecutive_failures`] failures in
+//! a row, when a look finds no grasp left, or after
+//! [`ScenarioConfig::max_attempts_per_round`] attempts. Placed objects are
 //! removed, and so are objects that left the table.
 //!
 //! ```
@@ -128,6 +131,16 @@ pub struct ScenarioConfig {
     /// 86 no-grasp attempts were such repeats). VGN's clutter-removal protocol ends a round the
     /// same way. The attempt that found nothing is still recorded, as one failure.
     pub end_round_without_grasp: bool,
+    /// A grasp tried this round whose centre lies within this distance of a grasp that failed
+    /// earlier in the round (m, world), its jaw axis within `failed_grasp_angle_deg`, is not
+    /// tried again: it is skipped as a lower-ranked candidate would be, in every scenario and
+    /// for every grasp source ([`crate::grasping::failed`]); 0 switches the memory off, and
+    /// cluttered rounds then take the `k`-th best grasp after `k` failures in a row, as the
+    /// reference does (default 0.02).
+    pub failed_grasp_radius_m: f64,
+    /// The angle between jaw axes within which a grasp counts as a failed one, modulo 180°
+    /// (degrees, at most 90; default 15).
+    pub failed_grasp_angle_deg: f64,
     /// Objects in a packed or pile round (default 5).
     pub clutter_objects: usize,
     /// Centre of the packed and pile arrangements on the table (m; default (0.05, −0.52)).
@@ -168,6 +181,8 @@ impl Default for ScenarioConfig {
             ranked_grasps: 3,
             max_consecutive_failures: 3,
             end_round_without_grasp: true,
+            failed_grasp_radius_m: 0.02,
+            failed_grasp_angle_deg: 15.0,
             clutter_objects: 5,
             clutter_center_xy_m: [0.05, -0.52],
             packed_start_m: 0.30,
@@ -218,6 +233,24 @@ impl ScenarioConfig {
             if !(v.is_finite() && v > 0.0) {
                 return bad(field, format!("{v} must be positive and finite"));
             }
+        }
+        if !(self.failed_grasp_radius_m.is_finite() && self.failed_grasp_radius_m >= 0.0) {
+            return bad(
+                "failed_grasp_radius_m",
+                format!(
+                    "{} must be zero (off) or positive and finite",
+                    self.failed_grasp_radius_m
+                ),
+            );
+        }
+        if !(0.0..=90.0).contains(&self.failed_grasp_angle_deg) {
+            return bad(
+                "failed_grasp_angle_deg",
+                format!(
+                    "{} must be between 0 and 90 degrees",
+                    self.failed_grasp_angle_deg
+                ),
+            );
         }
         if !self.clutter_center_xy_m.iter().all(|v| v.is_finite()) {
             return bad("clutter_center_xy_m", "must be finite".into());
@@ -741,6 +774,38 @@ mod tests {
     use crate::physics::config::WorldConfig;
     use lgdm_pointcloud::objects::procedural_library;
     use rand::SeedableRng;
+
+    /// The failed-grasp memory's radius and angle are refused negative or NaN, naming the field;
+    /// radius 0 (off) is allowed.
+    #[test]
+    fn the_failed_grasp_memory_is_validated() {
+        let field = |c: &ScenarioConfig| match c.validate() {
+            Err(WorldError::InvalidConfig { field, .. }) => Some(field),
+            _ => None,
+        };
+        for radius in [-0.01, f64::NAN, f64::INFINITY] {
+            let c = ScenarioConfig {
+                failed_grasp_radius_m: radius,
+                ..ScenarioConfig::default()
+            };
+            assert_eq!(field(&c).as_deref(), Some("scenario.failed_grasp_radius_m"));
+        }
+        for angle in [-1.0, f64::NAN, 91.0] {
+            let c = ScenarioConfig {
+                failed_grasp_angle_deg: angle,
+                ..ScenarioConfig::default()
+            };
+            assert_eq!(
+                field(&c).as_deref(),
+                Some("scenario.failed_grasp_angle_deg")
+            );
+        }
+        let off = ScenarioConfig {
+            failed_grasp_radius_m: 0.0,
+            ..ScenarioConfig::default()
+        };
+        assert!(off.validate().is_ok());
+    }
 
     /// Scattered objects stand apart, by the clearance, on the table and at rest.
     #[test]
