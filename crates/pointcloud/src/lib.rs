@@ -6,7 +6,8 @@
 //! [`dataset`] (MCAP collections in the `foxglove.PointCloud` schema + `manifest.json`) →
 //! [`features`] (GOOD, written as `.npz`). [`grasp`] labels grasps from geometry, writes
 //! grasp-labelled RGB-D images in the Cornell layout and decodes the grasp network's maps;
-//! [`segment`] finds the table and the objects on it in an RGB-D frame and [`crop`] cuts the
+//! [`sensor`] gives rendered depth a real camera's noise and missing pixels; [`segment`] finds
+//! the table and the objects on it in an RGB-D frame and [`crop`] cuts the
 //! grasp network's object-centred, fixed-scale input around one;
 //! [`projection`] makes 224×224 images of clouds; [`cache`] holds the embedded default
 //! dataset and cached feature tables. Every file is written atomically (temp file,
@@ -43,6 +44,7 @@ pub mod progress;
 pub mod projection;
 pub mod render;
 pub mod segment;
+pub mod sensor;
 pub mod sidecar;
 
 pub use cloud::PointCloud;

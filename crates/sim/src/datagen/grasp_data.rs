@@ -394,7 +394,10 @@ impl GraspDataJob {
             .iter()
             .map(|p| lib[p.library_index].name.clone())
             .collect();
-        let perception = Perception::new(cfg.cameras.clone())?;
+        // Without the sensor model, as the close-ups below (`look`).
+        let mut cameras = cfg.cameras.clone();
+        cameras.noise.enabled = false;
+        let perception = Perception::new(cameras)?;
         let overview = perception.look(&world)?;
         let views = match scenario {
             Scenario::Isolated => 1,
@@ -551,6 +554,9 @@ impl GraspDataJob {
     ) -> Result<Option<ObjectView>, SimError> {
         let r = &self.setup.randomise;
         let mut cameras = self.setup.config.cameras.clone();
+        // The sets' own randomisation (`Randomise`) stands in for the sensor model
+        // (`[cameras.noise]`), which grasp-data leaves off.
+        cameras.noise.enabled = false;
         let base = Perception::new(cameras.clone())?;
         let Ok(point) = base.table_point_m(overview, v) else {
             return Ok(None);

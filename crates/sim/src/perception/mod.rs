@@ -240,13 +240,16 @@ impl Perception {
                 y_m: table_point_m[1],
             })?;
         let closeup_segment = seg.objects[pick].clone();
-        let crop = object_crop(
+        let mut crop = object_crop(
             &shot.frame,
             &k,
             &seg.table,
             closeup_segment.centroid_px,
             &self.config.crop,
         )?;
+        // The sensor's missing pixels, filled as GR-ConvNet inpaints its input (a no-op on a
+        // clean frame, whose crop has none).
+        crop.fill_depth_holes();
         let object = shot.majority_object(&closeup_segment.pixels);
         Ok(ObjectView {
             segment: index,

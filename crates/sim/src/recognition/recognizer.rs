@@ -33,6 +33,7 @@
 
 use lgdm_base::seed::derive_seed;
 use lgdm_gdm::{Gdm, GdmConfig, PredictOptions, Sample};
+use lgdm_pointcloud::sensor::DepthNoise;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -108,6 +109,7 @@ pub struct MemoryPoint {
 #[derive(Debug)]
 pub struct Recognizer {
     config: RecognitionConfig,
+    sensor: DepthNoise,
     encoder: Box<dyn ViewEncoder>,
     gdm: Gdm,
     labels: Labels,
@@ -152,6 +154,7 @@ impl Recognizer {
         let next_sequence = gdm.current_sequence().map_or(0, |s| s.wrapping_add(1));
         Ok(Self {
             config,
+            sensor: DepthNoise::off(),
             encoder,
             gdm,
             labels,
@@ -197,6 +200,13 @@ impl Recognizer {
     /// Names where the model came from (`empty`, a checkpoint's path), for the run's record.
     pub fn with_origin(mut self, origin: impl Into<String>) -> Self {
         self.origin = origin.into();
+        self
+    }
+
+    /// Passes the views through a depth sensor model (default: none, the renderer's depth); a
+    /// run gives its cameras' (`[cameras.noise]`).
+    pub fn with_sensor(mut self, sensor: DepthNoise) -> Self {
+        self.sensor = sensor;
         self
     }
 
@@ -251,6 +261,7 @@ impl Recognizer {
             object,
             count,
             &self.config,
+            &self.sensor,
             self.encoder.as_mut(),
             &mut self.rng,
             wall,

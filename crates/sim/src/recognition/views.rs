@@ -10,9 +10,12 @@
 //! the robot's objects. The grasp close-up, by contrast, looks straight down from 0.5 m: a view the
 //! datasets never contain (a top view of a can is a disc), and only one. Neighbours on the table
 //! occlude the object as they would a real camera; only the object's own pixels are used. The views
-//! draw the object's mesh ([`RecognitionConfig::draw`], what the dataset draws).
+//! draw the object's mesh ([`RecognitionConfig::draw`], what the dataset draws), and a run's views
+//! go through the cameras' depth sensor model (`[cameras.noise]`, [`DepthNoise`]) as its
+//! overview and close-up frames do: the model learns from noisy views what the dataset drew clean.
 
 use lgdm_pointcloud::dataset::view_cloud;
+use lgdm_pointcloud::sensor::DepthNoise;
 use rand_chacha::ChaCha8Rng;
 
 use crate::perception::camera::{LABEL_FIRST_OBJECT, render_world};
@@ -26,12 +29,15 @@ use crate::recognition::error::RecognitionError;
 
 /// The encoder's features of `count` views of `object` from azimuths `k × view_step_rad`,
 /// k = 0, 1, … (see the module docs); views showing fewer than `min_points` of its points are
-/// skipped. The views' clouds are subsampled with `rng`.
+/// skipped. Each frame goes through `sensor` (a no-op when disabled); the views' clouds are
+/// subsampled with `rng`.
+#[allow(clippy::too_many_arguments)]
 pub fn orbit_features(
     world: &World,
     object: ObjectHandle,
     count: usize,
     config: &RecognitionConfig,
+    sensor: &DepthNoise,
     encoder: &mut dyn ViewEncoder,
     rng: &mut ChaCha8Rng,
     wall: &mut WallTimes,
@@ -47,7 +53,11 @@ pub fn orbit_features(
         let camera = config
             .camera
             .camera_around(base, k as f32 * config.view_step_rad);
-        let shot = wall.time(Work::Render, || render_world(world, &camera, config.draw))?;
+        let mut shot = wall.time(Work::Render, || render_world(world, &camera, config.draw))?;
+        if sensor.enabled {
+            let seed = sensor.frame_seed(world.steps(), &shot.frame);
+            sensor.apply(&mut shot.frame, &shot.camera.intrinsics, seed);
+        }
         let Some(index) = shot.objects.iter().position(|&h| h == object) else {
             continue;
         };

@@ -664,7 +664,7 @@ impl PickPlaceJob {
     ) -> Result<(RunResults, Recognizer), SimError> {
         let seed = self.spec.seed;
         let config = self.recognition;
-        let (mut recognizer, state) = match (checkpoint, self.start) {
+        let (recognizer, state) = match (checkpoint, self.start) {
             (Some((c, Some(gdm))), _) => {
                 let (Some(labels), Some(r)) = (c.labels, &c.state.recognizer) else {
                     return Err(SimError::Recognition(RecognitionError::InvalidConfig {
@@ -685,6 +685,8 @@ impl PickPlaceJob {
                 (r.with_origin(origin), None)
             }
         };
+        // The views go through the cameras' sensor model, as the robot's other frames do.
+        let mut recognizer = recognizer.with_sensor(self.spec.config.cameras.noise.clone());
         let (spec, set) = (&self.spec, &self.set);
         let saver = dir.as_ref().map(SimRunDir::checkpointer);
         let stop = &self.stop;
