@@ -159,11 +159,12 @@ impl ObjectCrop {
     }
 
     /// Fills the depth's holes (0: a camera's missing pixels, [`crate::sensor`]): each run of
-    /// missing pixels along a row takes the farther of the valid depths at its two ends, as a
-    /// missing pixel next to an object is most often the surface behind it (a stereo shadow on
-    /// the table, an edge's lost pixels); columns then fill what whole rows missed.
-    /// Deterministic; returns the pixels filled (0 for a crop without holes, or without any
-    /// valid pixel).
+    /// missing pixels along a row between two valid pixels takes the farther of their depths,
+    /// as a missing pixel next to an object is most often the surface behind it (a stereo
+    /// shadow on the table, an edge's lost pixels); columns then do the same; what neither
+    /// reaches (a run open at the crop's edge) takes the table's depth at the crop centre, never
+    /// the nearer surface, which would widen the object. Deterministic; returns the pixels
+    /// filled (0 for a crop without holes).
     pub fn fill_depth_holes(&mut self) -> usize {
         let n = self.size_px as usize;
         if self.depth_m.len() != n * n || n == 0 {
@@ -173,6 +174,12 @@ impl ObjectCrop {
         if self.depth_m.iter().any(|&d| !valid_depth(d)) {
             filled += fill_runs(&mut self.depth_m, n, n, 1, n);
         }
+        if valid_depth(self.table_depth_m) {
+            for d in self.depth_m.iter_mut().filter(|d| !valid_depth(**d)) {
+                *d = self.table_depth_m;
+                filled += 1;
+            }
+        }
         filled
     }
 }
@@ -181,8 +188,9 @@ fn valid_depth(d: f32) -> bool {
     d.is_finite() && d > 0.0
 }
 
-/// Fills each run of invalid depths along `lines` lines of `len` pixels (pixel k of line l at
-/// `l * line_stride + k * step`) with the farther valid depth at its ends; returns the count.
+/// Fills each run of invalid depths between two valid ones along `lines` lines of `len` pixels
+/// (pixel k of line l at `l * line_stride + k * step`) with the farther of the two; returns the
+/// count.
 fn fill_runs(
     depth: &mut [f32],
     lines: usize,
@@ -203,13 +211,10 @@ fn fill_runs(
             while k < len && !valid_depth(depth[at(k)]) {
                 k += 1;
             }
-            let before = (start > 0).then(|| depth[at(start - 1)]);
-            let after = (k < len).then(|| depth[at(k)]);
-            let fill = match (before, after) {
-                (Some(a), Some(b)) => a.max(b),
-                (Some(a), None) | (None, Some(a)) => a,
-                (None, None) => continue,
-            };
+            if start == 0 || k == len {
+                continue;
+            }
+            let fill = depth[at(start - 1)].max(depth[at(k)]);
             for j in start..k {
                 depth[at(j)] = fill;
             }
@@ -397,8 +402,17 @@ mod tests {
         crop.depth_m[10..15].fill(0.0);
         assert_eq!(crop.fill_depth_holes(), 5);
         assert_eq!(&crop.depth_m[10..15], &[0.4, 0.5, 0.5, 0.5, 0.5]);
+        // A run open at the crop's edge never takes the nearer surface: the table's depth.
+        crop.depth_m[0] = 0.0;
+        crop.depth_m[5] = 0.0;
+        crop.depth_m[1] = 0.4;
+        crop.depth_m[6] = 0.4;
+        crop.table_depth_m = 0.55;
+        assert_eq!(crop.fill_depth_holes(), 2);
+        assert_eq!((crop.depth_m[0], crop.depth_m[5]), (0.55, 0.55));
         let mut empty = ObjectCrop {
             depth_m: vec![0.0; 25],
+            table_depth_m: 0.0,
             ..crop
         };
         assert_eq!(empty.fill_depth_holes(), 0);

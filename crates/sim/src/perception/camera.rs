@@ -16,7 +16,8 @@
 //!   for rims and handles, and its 1.115 m height scales the tops of objects differently.
 //!
 //! What is drawn: the table (in the dataset's table colour), the baskets and the objects — by
-//! default their visual meshes ([`ObjectDrawing`]), as a real camera sees real objects. Every
+//! default their colliders in the meshes' colours ([`ObjectDrawing`]), so the camera sees what
+//! the fingers will meet (`mesh` draws the visual meshes). Every
 //! overview and close-up frame then goes through a depth sensor model
 //! ([`lgdm_pointcloud::sensor::DepthNoise`], `[cameras.noise]`, on by default): axial noise
 //! growing with distance, 1 mm quantisation, stereo shadows and missing pixels at edges and on
@@ -162,13 +163,15 @@ impl CloseupCamera {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ObjectDrawing {
-    /// The object's mesh, as the dataset draws it (default): the camera sees the designed
-    /// shape, as a real camera sees the real object, which the physics' collider only
-    /// approximates (a decomposition fills a vase's neck, a single hull a glass).
-    #[default]
+    /// The object's mesh, as the dataset draws it: the camera sees the designed shape, as a
+    /// real camera sees the real object, which the physics' collider only approximates (a
+    /// decomposition fills a vase's neck, a single hull a glass).
     Mesh,
     /// The object's collider — every convex part, each triangle in the colour of the nearest
-    /// mesh triangle: the camera sees exactly the shape the fingers meet.
+    /// mesh triangle (default): the camera sees exactly the shape the fingers meet. Drawing the
+    /// mesh costs the procedural vases, mugs and teapots what their decomposition does not
+    /// have (`docs/DESIGN.md` §7).
+    #[default]
     Collider,
 }
 
@@ -184,8 +187,8 @@ pub struct CameraConfig {
     pub crop: CropSpec,
     /// Table-plane fit and object segmentation (default: the dataset's).
     pub segment: SegmentParams,
-    /// What is drawn for an object (default `mesh`, the object's visual mesh as a real camera
-    /// sees it; `collider` draws the shape the physics simulates).
+    /// What is drawn for an object (default `collider`, the shape the physics simulates; `mesh`
+    /// draws the object's visual mesh, as a real camera would see it).
     pub draw: ObjectDrawing,
     /// The depth sensor model applied to every overview and close-up frame (`[cameras.noise]`;
     /// default: on, a RealSense D435-class camera, [`DepthNoise`]).

@@ -264,7 +264,7 @@ pub struct RobotArgs {
     /// The gripper (default: the config's, else the 2F-140, the paper's)
     #[arg(long, value_parser = option_value::<GripperModel>())]
     pub gripper: Option<GripperModel>,
-    /// What the cameras draw for an object (default: the config's, else mesh).
+    /// What the cameras draw for an object (default: the config's, else collider).
     #[arg(long, value_parser = option_value::<ObjectDrawing>())]
     pub draw: Option<ObjectDrawing>,
     /// The objects' collider shapes in the physics (default: the config's, else decomposition).
