@@ -450,6 +450,53 @@ mod tests {
         CameraConfig::default().validate().unwrap();
     }
 
+    /// The robot's frames go through the sensor model by default: the same world gives the same
+    /// bytes, another step other noise, and `enabled = false` the renderer's depth.
+    #[test]
+    fn frames_are_noisy_by_default_and_deterministic() {
+        let mut world = World::new(WorldConfig::default()).unwrap();
+        let top = world.config().table.top_z_m();
+        let cube = Mesh::cuboid([0.0, 0.0, 0.05], [0.06, 0.06, 0.1], [200, 40, 40]);
+        world
+            .spawn_object(
+                "cube",
+                &cube,
+                &lgdm_pointcloud::math::translation([0.05, -0.52, top]),
+            )
+            .unwrap();
+        let point = [0.05, -0.52, top];
+        let on = CameraConfig::default();
+        let off = CameraConfig {
+            noise: DepthNoise::off(),
+            ..CameraConfig::default()
+        };
+        let a = on.render_closeup(&world, point).unwrap();
+        let b = on.render_closeup(&world, point).unwrap();
+        let clean = off.render_closeup(&world, point).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.frame.label, clean.frame.label);
+        let (mut lost, mut moved, mut worst) = (0, 0, 0.0f32);
+        for (n, c) in a.frame.depth_m.iter().zip(&clean.frame.depth_m) {
+            if *c > 0.0 && *n == 0.0 {
+                lost += 1;
+            } else if *c > 0.0 {
+                moved += usize::from(n != c);
+                worst = worst.max((n - c).abs());
+            }
+        }
+        // The cube's stereo shadow alone is ~7 px × ~120 rows at 0.5 m.
+        assert!(lost > 500, "{lost}");
+        assert!(moved > a.frame.depth_m.len() / 2, "{moved}");
+        // σ ≈ 1.2 mm: nothing moves by a centimetre.
+        assert!(worst < 0.01, "{worst}");
+        world.step();
+        let c = on.render_closeup(&world, point).unwrap();
+        assert_ne!(c.frame.depth_m, a.frame.depth_m);
+        let overview = on.render_overview(&world).unwrap();
+        let overview_clean = off.render_overview(&world).unwrap();
+        assert_ne!(overview.frame.depth_m, overview_clean.frame.depth_m);
+    }
+
     #[test]
     fn validation_names_the_field() {
         let mut c = CameraConfig::default();
