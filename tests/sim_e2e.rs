@@ -465,6 +465,11 @@ fn a_runs_sim_toml_reproduces_it_and_bad_configs_name_the_field() {
     );
     let text = std::fs::read_to_string(first.join("sim.toml")).unwrap();
     assert!(text.contains("stroke_m = 0.14"), "{text}");
+    // The sensor model is on by default and sim.toml records it.
+    assert!(
+        text.contains("[cameras.noise]") && text.contains("axial_base_m = 0.0012"),
+        "{text}"
+    );
     let config = base.join("sim.toml");
     std::fs::write(&config, &text).unwrap();
     let again = base.join("again");
@@ -496,6 +501,14 @@ fn a_runs_sim_toml_reproduces_it_and_bad_configs_name_the_field() {
             vec!["bad.toml", "stroke"],
         ),
         ("[cameras\n", vec!["bad.toml"]),
+        (
+            "[cameras.noise]\naxial_base_m = -1.0\n",
+            vec!["bad.toml", "noise", "axial_base_m"],
+        ),
+        (
+            "[cameras.noise]\nedge_dropout = 1.5\n",
+            vec!["bad.toml", "noise", "edge_dropout"],
+        ),
     ] {
         let path = base.join("bad.toml");
         std::fs::write(&path, bad).unwrap();

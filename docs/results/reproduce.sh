@@ -37,9 +37,14 @@ TABLES=(
   "paper-objects-packing|ycb|Packing on the paper's objects"
   "thin-objects|ycb|Thin objects"
   "speed|ycb, ae for the network rows|Speed"
+  "sensor-noise|ycb, ae for the network row, about an hour|The robot with the depth sensor model (the defaults) and without"
 )
 
 ycb() { echo '[ -d ycb ] || lgdm sim objects --out ycb/'; }
+
+# The robot's tables measured before the depth sensor model (issue 43) ran with a perfect camera:
+# their commands say so (`--config` of this file), the sensor-noise table has today's defaults.
+perfect=$repo/docs/results/no-sensor-noise.toml
 
 table_recognition_paper_preset() {
   echo 'lgdm gen-dataset --out data/ --preset paper --progress none'
@@ -107,9 +112,9 @@ table_network_vs_analytic() {
       random-refine-first) grasp=random check='--proposal-check refine-first' ;;
       *) grasp=$row check='' ;;
     esac
-    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --rounds 300 --seed 7 --grasp $grasp $check --out $t/$row-isolated --progress none" | tr -s ' '
-    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario packed --rounds 50 --seed 7 --grasp $grasp $check --out $t/$row-packed --progress none" | tr -s ' '
-    echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --grasp $grasp $check --out $t/$row-ycb --progress none" | tr -s ' '
+    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --rounds 300 --seed 7 --grasp $grasp $check --config $perfect --out $t/$row-isolated --progress none" | tr -s ' '
+    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario packed --rounds 50 --seed 7 --grasp $grasp $check --config $perfect --out $t/$row-packed --progress none" | tr -s ' '
+    echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --grasp $grasp $check --config $perfect --out $t/$row-ycb --progress none" | tr -s ' '
   done
 }
 
@@ -118,7 +123,7 @@ table_others_analytic() {
   local grasp seed
   for grasp in analytic network; do
     for seed in 1 2; do
-      echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes others/ --objects 14 --attempts 300 --seed $seed --grasp $grasp --out runs/others-analytic/$grasp-s$seed --progress none"
+      echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes others/ --objects 14 --attempts 300 --seed $seed --grasp $grasp --config $perfect --out runs/others-analytic/$grasp-s$seed --progress none"
     done
   done
 }
@@ -130,7 +135,7 @@ table_grasp_data() {
 table_isolated_by_category() {
   local grasp
   for grasp in analytic random; do
-    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --grasp $grasp --rounds 720 --seed 0 --out runs/isolated-by-category/$grasp --progress none"
+    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --grasp $grasp --rounds 720 --seed 0 --config $perfect --out runs/isolated-by-category/$grasp --progress none"
   done
 }
 
@@ -138,43 +143,59 @@ table_cluttered() {
   local scenario grasp
   for scenario in packed pile scattered; do
     for grasp in analytic random; do
-      echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario $scenario --grasp $grasp --rounds 50 --seed 0 --out runs/cluttered/$scenario-$grasp --progress none"
+      echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario $scenario --grasp $grasp --rounds 50 --seed 0 --config $perfect --out runs/cluttered/$scenario-$grasp --progress none"
     done
   done
-  echo 'OMP_NUM_THREADS=1 lgdm sim grasp --scenario pile --grasp analytic --rounds 50 --seed 1 --out runs/cluttered/pile-analytic-s1 --progress none'
+  echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario pile --grasp analytic --rounds 50 --seed 1 --config $perfect --out runs/cluttered/pile-analytic-s1 --progress none"
 }
 
 table_pick_place() {
-  echo 'OMP_NUM_THREADS=1 lgdm sim pick-place --attempts 750 --seed 0 --out runs/pick-place/analytic --progress none'
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --attempts 750 --seed 0 --config $perfect --out runs/pick-place/analytic --progress none"
 }
 
 table_packing() {
-  echo 'OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --out runs/packing/scattered --progress none'
-  echo 'OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --scenario packed --out runs/packing/packed --progress none'
-  echo 'OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --grasp network --out runs/packing/network --progress none'
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --config $perfect --out runs/packing/scattered --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --scenario packed --config $perfect --out runs/packing/packed --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mug,can --seed 0 --grasp network --config $perfect --out runs/packing/network --progress none"
 }
 
 table_paper_objects() {
   ycb
   local t=runs/paper-objects
-  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --out $t/2f-140-analytic --progress none"
-  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --gripper 2f-85 --out $t/2f-85-analytic --progress none"
-  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --grasp random --out $t/2f-140-random --progress none"
-  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --gripper 2f-85 --grasp random --out $t/2f-85-random --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --config $perfect --out $t/2f-140-analytic --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --gripper 2f-85 --config $perfect --out $t/2f-85-analytic --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --grasp random --config $perfect --out $t/2f-140-random --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --gripper 2f-85 --grasp random --config $perfect --out $t/2f-85-random --progress none"
   echo '[ -d ycb-plain ] || { cp -r ycb ycb-plain && rm ycb-plain/objects.toml; }'
-  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb-plain/ --objects 14 --attempts 750 --seed 0 --out $t/2f-140-analytic-plain --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb-plain/ --objects 14 --attempts 750 --seed 0 --config $perfect --out $t/2f-140-analytic-plain --progress none"
 }
 
 table_paper_objects_packing() {
   ycb
-  echo 'OMP_NUM_THREADS=1 lgdm sim packing --targets mustard_bottle,tomato_soup_can --scenario packed --meshes ycb/ --objects 14 --seed 0 --out runs/paper-objects-packing/2f-140 --progress none'
-  echo 'OMP_NUM_THREADS=1 lgdm sim packing --targets mustard_bottle,tomato_soup_can --scenario packed --meshes ycb/ --objects 14 --seed 0 --gripper 2f-85 --out runs/paper-objects-packing/2f-85 --progress none'
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mustard_bottle,tomato_soup_can --scenario packed --meshes ycb/ --objects 14 --seed 0 --config $perfect --out runs/paper-objects-packing/2f-140 --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mustard_bottle,tomato_soup_can --scenario packed --meshes ycb/ --objects 14 --seed 0 --gripper 2f-85 --config $perfect --out runs/paper-objects-packing/2f-85 --progress none"
 }
 
 table_thin_objects() {
   echo '[ -d ycb-all ] || lgdm sim objects --set all --out ycb-all/'
   echo '[ -d thin ] || { mkdir thin && cp -r ycb-all/knife ycb-all/spatula ycb-all/fork ycb-all/spoon ycb-all/scissors thin/; }'
-  echo 'lgdm sim grasp --scenario isolated --meshes thin/ --rounds 100 --seed 0 --out runs/thin-objects/thin --progress none'
+  echo "lgdm sim grasp --scenario isolated --meshes thin/ --rounds 100 --seed 0 --config $perfect --out runs/thin-objects/thin --progress none"
+}
+
+table_sensor_noise() {
+  ycb
+  local t=runs/sensor-noise sc
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --out $t/paper-objects --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --config $perfect --out $t/paper-objects-perfect --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --draw mesh --out $t/paper-objects-mesh --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --grasp network --out $t/paper-objects-network --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim packing --targets mustard_bottle,tomato_soup_can --scenario packed --meshes ycb/ --objects 14 --seed 0 --out $t/paper-objects-packing --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --grasp analytic --rounds 720 --seed 0 --out $t/isolated --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario isolated --grasp analytic --rounds 720 --seed 0 --draw mesh --out $t/isolated-mesh --progress none"
+  echo "OMP_NUM_THREADS=1 lgdm sim pick-place --attempts 750 --seed 0 --out $t/pick-place --progress none"
+  for sc in packed pile scattered; do
+    echo "OMP_NUM_THREADS=1 lgdm sim grasp --scenario $sc --grasp analytic --rounds 50 --seed 0 --out $t/$sc --progress none"
+  done
 }
 
 table_speed() {
@@ -182,8 +203,8 @@ table_speed() {
   echo 'lgdm gen-dataset --out runs/speed/small/ --preset small --progress none'
   echo 'lgdm gen-dataset --out runs/speed/data/ --preset paper --grasp-images 0 --progress none'
   echo 'lgdm features --encoder good --dataset runs/speed/data/ --out runs/speed/good.npz --progress none'
-  echo 'time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --out runs/speed/ycb-750 --progress none'
-  echo 'time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 150 --seed 0 --out runs/speed/ycb-150 --progress none'
+  echo "time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --config $perfect --out runs/speed/ycb-750 --progress none"
+  echo "time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 150 --seed 0 --config $perfect --out runs/speed/ycb-150 --progress none"
   echo "(cd \"\$REPO\" && LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt)"
   echo "(cd \"\$REPO\" && RAYON_NUM_THREADS=1 LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt -- proposal_check)"
   echo "(cd \"\$REPO\" && cargo bench -p lgdm-sim --bench dense_mesh)"
