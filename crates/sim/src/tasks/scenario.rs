@@ -741,12 +741,32 @@ fn packed_pose(
     )
 }
 
-/// Checks that every library object can be simulated (its convex hull can be built, it fits on
-/// the table), naming the first that cannot.
+/// Checks that every library object can be simulated (its convex hull can be built) and can
+/// land in every basket, naming the first that cannot: a basket whose shorter inner side is
+/// below the object's smallest extent, or whose inner diagonal is below its middle one (the
+/// extents of the mesh's bounding box), can never hold it, so a run would only record drops.
 pub fn check_library(
     world_config: &crate::physics::config::WorldConfig,
     library: &[ObjectModel],
 ) -> Result<(), WorldError> {
+    for o in library {
+        let Some(mut extent) = mesh_extents_m(&o.mesh) else {
+            continue;
+        };
+        extent.sort_by(f32::total_cmp);
+        for (b, basket) in world_config.baskets.iter().enumerate() {
+            let [ix, iy] = basket.inner_size_m;
+            if extent[0] > ix.min(iy) || extent[1] > ix.hypot(iy) {
+                return Err(WorldError::InvalidConfig {
+                    field: format!("baskets[{b}].inner_size_m"),
+                    reason: format!(
+                        "{ix}×{iy} m cannot hold {} ({:.3}×{:.3}×{:.3} m): no way in",
+                        o.name, extent[0], extent[1], extent[2]
+                    ),
+                });
+            }
+        }
+    }
     let mut world = World::new(world_config.clone())?;
     let top = world_config.table.top_z_m();
     let [cx, cy, _] = world_config.table.center_m;
@@ -756,6 +776,19 @@ pub fn check_library(
         world.remove_object(h)?;
     }
     Ok(())
+}
+
+/// The extents of a mesh's axis-aligned bounding box (m); `None` without vertices.
+fn mesh_extents_m(mesh: &lgdm_pointcloud::mesh::Mesh) -> Option<[f32; 3]> {
+    let first = *mesh.vertices.first()?;
+    let (mut lo, mut hi) = (first, first);
+    for v in &mesh.vertices {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    Some([hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]])
 }
 
 /// Whether the object's centre of mass is still over the table top (not fallen off, not in a
@@ -774,6 +807,23 @@ mod tests {
     use crate::physics::config::WorldConfig;
     use lgdm_pointcloud::objects::procedural_library;
     use rand::SeedableRng;
+
+    /// A basket that cannot hold an object of the library is refused before any work, naming
+    /// the basket's field and the object; the default baskets hold every procedural object.
+    #[test]
+    fn a_basket_smaller_than_an_object_is_refused() {
+        let library = procedural_library(&lgdm_pointcloud::objects::CATEGORIES, 1, 0).unwrap();
+        let mut config = WorldConfig::default();
+        check_library(&config, &library).unwrap();
+        config.baskets[1].inner_size_m = [0.05, 0.3];
+        match check_library(&config, &library) {
+            Err(WorldError::InvalidConfig { field, reason }) => {
+                assert_eq!(field, "baskets[1].inner_size_m");
+                assert!(reason.contains("cannot hold"), "{reason}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 
     /// The failed-grasp memory's radius and angle are refused negative or NaN, naming the field;
     /// radius 0 (off) is allowed.
