@@ -749,6 +749,15 @@ pub fn check_library(
     world_config: &crate::physics::config::WorldConfig,
     library: &[ObjectModel],
 ) -> Result<(), WorldError> {
+    let mut world = World::new(world_config.clone())?;
+    let top = world_config.table.top_z_m();
+    let [cx, cy, _] = world_config.table.center_m;
+    for o in library {
+        let pose = Pose::from_parts(Translation3::new(cx, cy, top), Rotation3::identity());
+        let h = world.spawn_object(&o.name, &o.mesh, &pose)?;
+        world.remove_object(h)?;
+    }
+    // After the table's check, which names an object too large for the table first.
     for o in library {
         let Some(mut extent) = mesh_extents_m(&o.mesh) else {
             continue;
@@ -766,14 +775,6 @@ pub fn check_library(
                 });
             }
         }
-    }
-    let mut world = World::new(world_config.clone())?;
-    let top = world_config.table.top_z_m();
-    let [cx, cy, _] = world_config.table.center_m;
-    for o in library {
-        let pose = Pose::from_parts(Translation3::new(cx, cy, top), Rotation3::identity());
-        let h = world.spawn_object(&o.name, &o.mesh, &pose)?;
-        world.remove_object(h)?;
     }
     Ok(())
 }
