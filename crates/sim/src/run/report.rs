@@ -52,6 +52,16 @@ pub fn summary_table(r: &RunResults) -> String {
         ("contact-only (paper's test)", &s.contact_only_success_rate),
     ] {
         let _ = writeln!(out, "{name:<28} {}", rate.describe());
+        if name == "placement success"
+            && let Some(landed) = &s.landed_rate
+        {
+            let _ = writeln!(
+                out,
+                "{:<28} {}",
+                "  of the objects grasped",
+                landed.describe()
+            );
+        }
     }
     let _ = writeln!(out, "\nper category (object aimed at):");
     // As wide as the longest name (at least 12): YCB names such as `tomato_soup_can` are longer.

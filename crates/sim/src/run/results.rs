@@ -185,6 +185,10 @@ pub struct Summary {
     pub grasp_success_rate: Rate,
     /// Placements / attempts.
     pub placement_success_rate: Rate,
+    /// Placements / grasp successes: of the objects held, the share that landed in the basket
+    /// (none when nothing was grasped; absent in results written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub landed_rate: Option<Rate>,
     /// Objects placed / objects set on the table.
     pub cleared_fraction: Rate,
     /// The paper's contact-only successes / attempts.
@@ -357,6 +361,12 @@ pub fn summarize(
         s.placement_success_rate,
         per_round(&|a| Some(a.placement_success)),
     );
+    s.landed_rate = s.landed_rate.map(|r| {
+        cluster(
+            r,
+            per_round(&|a| a.grasp_success.then_some(a.placement_success)),
+        )
+    });
     s.contact_only_success_rate = cluster(
         s.contact_only_success_rate,
         per_round(&|a| Some(a.contact_only_success)),
@@ -461,6 +471,15 @@ fn summarize_pooled(
         attempts: n,
         grasp_success_rate: Rate::new(count(&|a| a.grasp_success, &all), n),
         placement_success_rate: Rate::new(count(&|a| a.placement_success, &all), n),
+        landed_rate: {
+            let grasped = count(&|a| a.grasp_success, &all);
+            (grasped > 0).then(|| {
+                Rate::new(
+                    count(&|a| a.grasp_success && a.placement_success, &all),
+                    grasped,
+                )
+            })
+        },
         cleared_fraction: Rate::new(placed, presented),
         contact_only_success_rate: Rate::new(count(&|a| a.contact_only_success, &all), n),
         per_category,

@@ -172,6 +172,9 @@ pub enum ObjectSetArg {
     /// Every mesh but the paper's objects (64), as each file lies: training objects the
     /// paper's robot experiments never show.
     Others,
+    /// 60 generated irregular shapes (blobs, lumps, slabs, sticks, branches), no package
+    /// needed; `--seed 0` is the validation set, every other seed a test set.
+    Irregular,
 }
 
 /// Arguments of `lgdm sim objects`.
@@ -188,6 +191,9 @@ pub struct ObjectsArgs {
     /// from.
     #[arg(long, value_name = "DIR")]
     pub from: Option<PathBuf>,
+    /// The generator seed of `--set irregular` (0: the validation set; any other: a test set).
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// The scenarios (`--scenario`).

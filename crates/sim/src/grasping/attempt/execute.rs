@@ -67,7 +67,20 @@ pub struct Measurements {
     pub placed_motion: Option<[f32; 2]>,
     /// Its lowest collider point then (m, world).
     pub placed_lowest_z_m: Option<f32>,
+    /// When it was inside the basket but faster than at rest: how far its centre of mass moved
+    /// (m) and how far it turned (rad) over the next [`REST_WINDOW_S`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placed_drift: Option<[f32; 2]>,
 }
+
+/// How long an object inside the basket but not slower than at rest is watched (s; 0.5).
+pub const REST_WINDOW_S: f64 = 0.5;
+/// It is at rest when its centre of mass moved less than this over the window (m; 0.003)…
+pub const REST_DRIFT_M: f32 = 0.003;
+/// …and it turned less than this (rad; 0.1, about 6°). The solver's tremble turns a lying
+/// stick or slab by up to 0.066 rad between two looks 0.5 s apart (the irregular validation
+/// set, `lgdm sim objects --set irregular --seed 0`), with its centre moving 1 mm at most.
+pub const REST_TURN_RAD: f32 = 0.1;
 
 /// How far inside the basket's wall the highest carry point may be, at the most, on the side
 /// toward the arm (m): room for a held object's half width.
@@ -423,12 +436,16 @@ impl Attempt<'_> {
         Ok(())
     }
 
-    /// Phase 5: judge the placement: `object` at rest inside `basket`.
+    /// Phase 5: judge the placement: `object` at rest inside `basket`. At rest is slower than
+    /// 2 cm/s and 0.2 rad/s, or, when it is not, a pose that moves less than
+    /// [`REST_DRIFT_M`] and [`REST_TURN_RAD`] over the next [`REST_WINDOW_S`]: the solver can
+    /// keep a thin or finely faceted object that lies still (a slab, a stick) trembling at
+    /// 1 cm/s and 1 rad/s for as long as it is watched, while its pose does not change by a
+    /// millimetre.
     fn judge_placement(&mut self, object: ObjectHandle, basket: &BasketConfig) -> Result<(), Stop> {
         let world = &self.cell.world;
-        let out = &mut self.out;
         let com = world.object_center_of_mass_m(object)?;
-        out.measured.placed_at_m = Some(com);
+        self.out.measured.placed_at_m = Some(com);
         // Inside: the centre of mass between the walls, resting on the floor (its lowest point
         // between the floor and the wall tops; a tall object's centre may stand above them).
         let (lo, hi) = basket.inner_bounds_m();
@@ -445,14 +462,33 @@ impl Attempt<'_> {
         let (v, w) = world.object_velocity(object)?;
         let speed = v.iter().map(|c| c * c).sum::<f32>().sqrt();
         let spin = w.iter().map(|c| c * c).sum::<f32>().sqrt();
-        let at_rest = speed < 0.02 && spin < 0.2;
-        out.measured.placed_motion = Some([speed, spin]);
-        out.measured.placed_lowest_z_m = Some(lowest);
-        out.placement_success = inside && at_rest;
-        if !out.placement_success {
-            return Err(Stop::Failed(FailureReason::DroppedOutside));
+        let mut at_rest = speed < 0.02 && spin < 0.2;
+        self.out.measured.placed_motion = Some([speed, spin]);
+        self.out.measured.placed_lowest_z_m = Some(lowest);
+        if inside && !at_rest {
+            hold(self.cell, REST_WINDOW_S, self.wall)?;
+            let world = &self.cell.world;
+            let later = world.object_pose(object)?;
+            let moved = world.object_center_of_mass_m(object)?;
+            let drift = (0..3)
+                .map(|i| (moved[i] - com[i]).powi(2))
+                .sum::<f32>()
+                .sqrt();
+            // The angle of the relative rotation, its cosine clamped: float error can put
+            // the trace of a rotation by nothing a hair above 3 (`angle()` is then NaN).
+            let relative = pose.rotation.inverse() * later.rotation;
+            let turn = ((relative.matrix().trace() - 1.0) / 2.0)
+                .clamp(-1.0, 1.0)
+                .acos();
+            self.out.measured.placed_drift = Some([drift, turn]);
+            at_rest = drift < REST_DRIFT_M && turn < REST_TURN_RAD;
         }
-        Ok(())
+        self.out.placement_success = inside && at_rest;
+        match (inside, at_rest) {
+            (true, true) => Ok(()),
+            (true, false) => Err(Stop::Failed(FailureReason::StillMoving)),
+            (false, _) => Err(Stop::Failed(FailureReason::DroppedOutside)),
+        }
     }
 }
 

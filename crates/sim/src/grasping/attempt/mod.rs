@@ -40,7 +40,9 @@ mod plan;
 mod verdict;
 
 pub use config::{AttemptConfig, AttemptError};
-pub use execute::{CARRY_INSET_M, Execution, Measurements, execute};
+pub use execute::{
+    CARRY_INSET_M, Execution, Measurements, REST_DRIFT_M, REST_TURN_RAD, REST_WINDOW_S, execute,
+};
 pub use motion::{Cell, park};
 pub use plan::{GraspPlan, plan_grasp, plan_grasp_for};
 pub use verdict::{FailureReason, width_between_pads_m};

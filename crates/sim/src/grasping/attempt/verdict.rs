@@ -34,8 +34,13 @@ pub enum FailureReason {
     SlippedDuringLift,
     /// The object was lifted but lost on the way to the basket.
     SlippedDuringCarry,
-    /// The object was released but did not come to rest inside the basket.
+    /// The object was released and came to rest outside the basket (or is still falling
+    /// there).
     DroppedOutside,
+    /// The object was released inside the basket but did not come to rest there: it still
+    /// rolled or rocked when the placement was judged
+    /// ([`crate::grasping::attempt::REST_WINDOW_S`]).
+    StillMoving,
     /// Packing only (judged by [`crate::tasks::packing::judge`], never by
     /// [`crate::grasping::attempt::execute()`]): the object was placed, but in the basket of a
     /// category that is not its own.
@@ -44,7 +49,7 @@ pub enum FailureReason {
 
 impl FailureReason {
     /// Every reason, in a fixed order.
-    pub const ALL: [FailureReason; 9] = [
+    pub const ALL: [FailureReason; 10] = [
         Self::NoGraspFound,
         Self::WiderThanGripper,
         Self::Unreachable,
@@ -53,6 +58,7 @@ impl FailureReason {
         Self::SlippedDuringLift,
         Self::SlippedDuringCarry,
         Self::DroppedOutside,
+        Self::StillMoving,
         Self::Misrecognised,
     ];
 
@@ -67,6 +73,7 @@ impl FailureReason {
             Self::SlippedDuringLift => "slipped_during_lift",
             Self::SlippedDuringCarry => "slipped_during_carry",
             Self::DroppedOutside => "dropped_outside",
+            Self::StillMoving => "still_moving",
             Self::Misrecognised => "misrecognised",
         }
     }
