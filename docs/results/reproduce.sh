@@ -38,6 +38,7 @@ TABLES=(
   "thin-objects|ycb|Thin objects"
   "speed|ycb, ae for the network rows|Speed"
   "sensor-noise|ycb, ae for the network row, about an hour|The robot with the depth sensor model (the defaults) and without"
+  "irregular|ycb for the last row, about 5 minutes|Irregular shapes: placement (validation seed 0, test seeds 1 and 2, the other YCB meshes)"
 )
 
 ycb() { echo '[ -d ycb ] || lgdm sim objects --out ycb/'; }
@@ -198,6 +199,16 @@ table_sensor_noise() {
   done
 }
 
+table_irregular() {
+  local t=runs/irregular s
+  for s in 0 1 2; do
+    echo "[ -d irregular-$s ] || lgdm sim objects --set irregular --seed $s --out irregular-$s/"
+    echo "lgdm sim grasp --scenario isolated --grasp analytic --meshes irregular-$s/ --rounds 120 --seed 0 --out $t/seed-$s --progress none"
+  done
+  echo '[ -d ycb-others ] || lgdm sim objects --set others --out ycb-others/'
+  echo "lgdm sim grasp --scenario isolated --grasp analytic --meshes ycb-others/ --rounds 128 --seed 0 --out $t/ycb-others --progress none"
+}
+
 table_speed() {
   ycb
   echo 'lgdm gen-dataset --out runs/speed/small/ --preset small --progress none'
@@ -208,6 +219,7 @@ table_speed() {
   echo "(cd \"\$REPO\" && LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt)"
   echo "(cd \"\$REPO\" && RAYON_NUM_THREADS=1 LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt -- proposal_check)"
   echo "(cd \"\$REPO\" && cargo bench -p lgdm-sim --bench dense_mesh)"
+  echo "(cd \"\$REPO\" && cargo bench -p lgdm-sim --bench camera)"
   echo "(cd \"\$REPO\" && OMP_NUM_THREADS=1 cargo bench -p lgdm-pybridge --features ae --bench ae_infer)"
   echo "(cd \"\$REPO\" && python crates/pybridge/bench/bench_overhead.py)"
   echo "(cd \"\$REPO\" && python -m lgdm.sweep examples/sweeps/small.toml --out \"\$WORK/runs/speed/sweep-small\")"

@@ -173,6 +173,16 @@ impl DepthNoise {
         derive_seed(self.seed, TAG_FRAME, salt, u64::from(h.finalize()))
     }
 
+    /// Applies the model to `frame` with the draws of [`DepthNoise::frame_seed`] for `salt`
+    /// (the robot's cameras pass the simulation step): what every camera of a run does with a
+    /// clean frame. A no-op when disabled.
+    pub fn sense(&self, frame: &mut RgbdFrame, intrinsics: &Intrinsics, salt: u64) {
+        if self.enabled {
+            let seed = self.frame_seed(salt, frame);
+            self.apply(frame, intrinsics, seed);
+        }
+    }
+
     /// Axial standard deviation (m) at depth `z_m` and incidence `theta_rad`.
     pub fn axial_sigma_m(&self, z_m: f32, theta_rad: f32) -> f32 {
         let dz = z_m - self.axial_reference_m;
@@ -201,12 +211,15 @@ impl DepthNoise {
         let shadow = self.stereo_shadow(clean, intrinsics, w, h);
         let cos_max = self.max_incidence_deg.to_radians().cos();
         let rgb = &frame.rgb;
-        let noisy: Vec<f32> = (0..h)
-            .into_par_iter()
-            .flat_map_iter(|y| {
+        // Written row by row in place: one allocation, no concatenation of rayon's pieces.
+        let mut noisy = vec![0.0f32; w * h];
+        noisy
+            .par_chunks_mut(w)
+            .enumerate()
+            .for_each(|(y, row)| {
                 let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_FRAME, y as u64, 0));
                 let shadow = &shadow;
-                (0..w).map(move |x| {
+                let mut pixel = |x: usize| -> f32 {
                     // Three draws per pixel whatever happens to it, so one pixel's fate never
                     // shifts another's.
                     let (p_edge, p_dark): (f32, f32) = (rng.random(), rng.random());
@@ -261,9 +274,11 @@ impl DepthNoise {
                         d = (d / self.quantum_m).round() * self.quantum_m;
                     }
                     d.max(self.quantum_m.max(1e-4))
-                })
-            })
-            .collect();
+                };
+                for (x, out) in row.iter_mut().enumerate() {
+                    *out = pixel(x);
+                }
+            });
         frame.depth_m = noisy;
     }
 

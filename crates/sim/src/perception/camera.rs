@@ -310,11 +310,8 @@ impl CameraConfig {
     /// Applies the sensor model to a frame of `world`: the draws depend on the model's seed,
     /// the world's step and the clean depth, so a run's frames are the same bytes every time.
     fn sense(&self, world: &World, mut shot: SceneFrame) -> SceneFrame {
-        if self.noise.enabled {
-            let seed = self.noise.frame_seed(world.steps(), &shot.frame);
-            self.noise
-                .apply(&mut shot.frame, &shot.camera.intrinsics, seed);
-        }
+        self.noise
+            .sense(&mut shot.frame, &shot.camera.intrinsics, world.steps());
         shot
     }
 }

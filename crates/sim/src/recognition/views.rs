@@ -54,10 +54,7 @@ pub fn orbit_features(
             .camera
             .camera_around(base, k as f32 * config.view_step_rad);
         let mut shot = wall.time(Work::Render, || render_world(world, &camera, config.draw))?;
-        if sensor.enabled {
-            let seed = sensor.frame_seed(world.steps(), &shot.frame);
-            sensor.apply(&mut shot.frame, &shot.camera.intrinsics, seed);
-        }
+        sensor.sense(&mut shot.frame, &shot.camera.intrinsics, world.steps());
         let Some(index) = shot.objects.iter().position(|&h| h == object) else {
             continue;
         };
