@@ -216,6 +216,7 @@ table_speed() {
   echo 'lgdm features --encoder good --dataset runs/speed/data/ --out runs/speed/good.npz --progress none'
   echo "time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --config $perfect --out runs/speed/ycb-750 --progress none"
   echo "time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 150 --seed 0 --config $perfect --out runs/speed/ycb-150 --progress none"
+  echo "time lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --out runs/speed/ycb-750-sensor --progress none"
   echo "(cd \"\$REPO\" && LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt)"
   echo "(cd \"\$REPO\" && RAYON_NUM_THREADS=1 LGDM_BENCH_YCB=\"\$WORK/ycb\" cargo bench -p lgdm-sim --bench attempt -- proposal_check)"
   echo "(cd \"\$REPO\" && cargo bench -p lgdm-sim --bench dense_mesh)"

@@ -213,72 +213,69 @@ impl DepthNoise {
         let rgb = &frame.rgb;
         // Written row by row in place: one allocation, no concatenation of rayon's pieces.
         let mut noisy = vec![0.0f32; w * h];
-        noisy
-            .par_chunks_mut(w)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_FRAME, y as u64, 0));
-                let shadow = &shadow;
-                let mut pixel = |x: usize| -> f32 {
-                    // Three draws per pixel whatever happens to it, so one pixel's fate never
-                    // shifts another's.
-                    let (p_edge, p_dark): (f32, f32) = (rng.random(), rng.random());
-                    let n: f32 = rng.sample(StandardNormal);
-                    let i = y * w + x;
-                    if !valid(i) || shadow[i] {
-                        return 0.0;
-                    }
-                    let z = clean[i];
-                    let near = |j: usize| valid(j) && (clean[j] - z).abs() <= self.edge_jump_m;
-                    let neighbours = [
-                        (x > 0).then(|| i - 1),
-                        (x + 1 < w).then(|| i + 1),
-                        (y > 0).then(|| i - w),
-                        (y + 1 < h).then(|| i + w),
-                    ];
-                    let at_edge = neighbours.iter().any(|j| j.is_some_and(|j| !near(j)));
-                    if at_edge && p_edge < self.edge_dropout {
-                        return 0.0;
-                    }
-                    let [r, g, b] = rgb[i].map(f32::from);
-                    let luminance = (0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0;
-                    if luminance < self.dark_luminance && p_dark < self.dark_dropout {
-                        return 0.0;
-                    }
-                    let point =
-                        |j: usize| intrinsics.unproject((j % w) as f32, (j / w) as f32, clean[j]);
-                    // Tangents from the neighbours on the same surface (central where both are).
-                    let tangent = |a: Option<usize>, b: Option<usize>| {
-                        let a = a.filter(|&j| near(j)).unwrap_or(i);
-                        let b = b.filter(|&j| near(j)).unwrap_or(i);
-                        (a != b).then(|| sub(point(b), point(a)))
-                    };
-                    let mut theta = 0.0;
-                    if let (Some(tx), Some(ty)) = (
-                        tangent(neighbours[0], neighbours[1]),
-                        tangent(neighbours[2], neighbours[3]),
-                    ) {
-                        let normal = cross(tx, ty);
-                        let p = point(i);
-                        let denom = norm(normal) * norm(p);
-                        if denom > 0.0 {
-                            let cos = (dot(normal, p) / denom).abs().min(1.0);
-                            if cos < cos_max {
-                                return 0.0;
-                            }
-                            theta = cos.acos();
-                        }
-                    }
-                    let mut d = z + self.axial_sigma_m(z, theta) * n;
-                    if self.quantum_m > 0.0 {
-                        d = (d / self.quantum_m).round() * self.quantum_m;
-                    }
-                    d.max(self.quantum_m.max(1e-4))
-                };
-                for (x, out) in row.iter_mut().enumerate() {
-                    *out = pixel(x);
+        noisy.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, TAG_FRAME, y as u64, 0));
+            let shadow = &shadow;
+            let mut pixel = |x: usize| -> f32 {
+                // Three draws per pixel whatever happens to it, so one pixel's fate never
+                // shifts another's.
+                let (p_edge, p_dark): (f32, f32) = (rng.random(), rng.random());
+                let n: f32 = rng.sample(StandardNormal);
+                let i = y * w + x;
+                if !valid(i) || shadow[i] {
+                    return 0.0;
                 }
-            });
+                let z = clean[i];
+                let near = |j: usize| valid(j) && (clean[j] - z).abs() <= self.edge_jump_m;
+                let neighbours = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < w).then(|| i + 1),
+                    (y > 0).then(|| i - w),
+                    (y + 1 < h).then(|| i + w),
+                ];
+                let at_edge = neighbours.iter().any(|j| j.is_some_and(|j| !near(j)));
+                if at_edge && p_edge < self.edge_dropout {
+                    return 0.0;
+                }
+                let [r, g, b] = rgb[i].map(f32::from);
+                let luminance = (0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0;
+                if luminance < self.dark_luminance && p_dark < self.dark_dropout {
+                    return 0.0;
+                }
+                let point =
+                    |j: usize| intrinsics.unproject((j % w) as f32, (j / w) as f32, clean[j]);
+                // Tangents from the neighbours on the same surface (central where both are).
+                let tangent = |a: Option<usize>, b: Option<usize>| {
+                    let a = a.filter(|&j| near(j)).unwrap_or(i);
+                    let b = b.filter(|&j| near(j)).unwrap_or(i);
+                    (a != b).then(|| sub(point(b), point(a)))
+                };
+                let mut theta = 0.0;
+                if let (Some(tx), Some(ty)) = (
+                    tangent(neighbours[0], neighbours[1]),
+                    tangent(neighbours[2], neighbours[3]),
+                ) {
+                    let normal = cross(tx, ty);
+                    let p = point(i);
+                    let denom = norm(normal) * norm(p);
+                    if denom > 0.0 {
+                        let cos = (dot(normal, p) / denom).abs().min(1.0);
+                        if cos < cos_max {
+                            return 0.0;
+                        }
+                        theta = cos.acos();
+                    }
+                }
+                let mut d = z + self.axial_sigma_m(z, theta) * n;
+                if self.quantum_m > 0.0 {
+                    d = (d / self.quantum_m).round() * self.quantum_m;
+                }
+                d.max(self.quantum_m.max(1e-4))
+            };
+            for (x, out) in row.iter_mut().enumerate() {
+                *out = pixel(x);
+            }
+        });
         frame.depth_m = noisy;
     }
 

@@ -51,6 +51,7 @@ use rapier3d::prelude::{
     CoefficientCombineRule, ColliderBuilder, ColliderHandle, FrictionModel, PhysicsWorld,
     RigidBodyBuilder, RigidBodyHandle, SharedShape, SpringCoefficients,
 };
+use serde::{Deserialize, Serialize};
 
 use crate::physics::config::{FrictionKind, ObjectMaterial, WorldConfig, finite};
 use crate::physics::drop_region::DropRegion;
@@ -80,12 +81,40 @@ pub struct SettleReport {
     pub settled: bool,
 }
 
+/// What a piece of the fixed scenery is part of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scenery {
+    /// The table.
+    Table,
+    /// Basket `i` of the config (its floor plate or a wall).
+    Basket(usize),
+    /// The floor plane under everything.
+    Floor,
+    /// The pedestal the arm stands on.
+    Pedestal,
+    /// A temporary wall (the walls a pile is dropped into).
+    Wall,
+}
+
+impl std::fmt::Display for Scenery {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Scenery::Table => f.write_str("the table"),
+            Scenery::Basket(i) => write!(f, "basket {i}"),
+            Scenery::Floor => f.write_str("the floor"),
+            Scenery::Pedestal => f.write_str("the pedestal"),
+            Scenery::Wall => f.write_str("a pile wall"),
+        }
+    }
+}
+
 /// The physics world: rapier's state plus the scenery and the objects.
 pub struct World {
     config: WorldConfig,
     pub(crate) physics: PhysicsWorld,
     objects: Vec<Option<ObjectEntry>>,
-    scenery: Vec<ColliderHandle>,
+    scenery: Vec<(ColliderHandle, Scenery)>,
     steps: u64,
     observer: Option<Box<dyn StepObserver>>,
 }
@@ -149,8 +178,13 @@ impl World {
         let table = self.config.table.clone();
         let [cx, cy, cz] = table.center_m;
         let [sx, sy, sz] = table.size_m;
-        self.add_fixed_box([cx, cy, cz], [sx / 2.0, sy / 2.0, sz / 2.0], table.friction);
-        for basket in self.config.baskets.clone() {
+        self.add_fixed_box(
+            Scenery::Table,
+            [cx, cy, cz],
+            [sx / 2.0, sy / 2.0, sz / 2.0],
+            table.friction,
+        );
+        for (b, basket) in self.config.baskets.clone().into_iter().enumerate() {
             let [x, y, z] = basket.floor_center_m;
             let t = basket.wall_thickness_m;
             let [ix, iy] = basket.inner_size_m;
@@ -158,37 +192,47 @@ impl World {
             let h = basket.wall_height_m;
             let mu = basket.friction;
             // Floor plate below the floor top face, then four walls on its rim.
-            self.add_fixed_box([x, y, z - t / 2.0], [hx, hy, t / 2.0], mu);
+            self.add_fixed_box(
+                Scenery::Basket(b),
+                [x, y, z - t / 2.0],
+                [hx, hy, t / 2.0],
+                mu,
+            );
             let wall_z = z + h / 2.0;
             self.add_fixed_box(
+                Scenery::Basket(b),
                 [x + ix / 2.0 + t / 2.0, y, wall_z],
                 [t / 2.0, hy, h / 2.0],
                 mu,
             );
             self.add_fixed_box(
+                Scenery::Basket(b),
                 [x - ix / 2.0 - t / 2.0, y, wall_z],
                 [t / 2.0, hy, h / 2.0],
                 mu,
             );
             self.add_fixed_box(
+                Scenery::Basket(b),
                 [x, y + iy / 2.0 + t / 2.0, wall_z],
                 [hx, t / 2.0, h / 2.0],
                 mu,
             );
             self.add_fixed_box(
+                Scenery::Basket(b),
                 [x, y - iy / 2.0 - t / 2.0, wall_z],
                 [hx, t / 2.0, h / 2.0],
                 mu,
             );
         }
         if self.config.floor {
-            self.add_fixed_box([0.0, 0.0, -0.05], [5.0, 5.0, 0.05], 0.5);
+            self.add_fixed_box(Scenery::Floor, [0.0, 0.0, -0.05], [5.0, 5.0, 0.05], 0.5);
         }
     }
 
     /// Adds a fixed box of scenery (collides with objects and the gripper).
     pub(crate) fn add_fixed_box(
         &mut self,
+        what: Scenery,
         center_m: [f32; 3],
         half_extents_m: [f32; 3],
         friction: f32,
@@ -200,7 +244,7 @@ impl World {
             .friction_combine_rule(CoefficientCombineRule::Multiply)
             .collision_groups(static_groups());
         let (_, c) = self.physics.insert(body, collider);
-        self.scenery.push(c);
+        self.scenery.push((c, what));
         c
     }
 
@@ -215,7 +259,7 @@ impl World {
         {
             self.physics.remove_body_with_colliders(body, true);
         }
-        self.scenery.retain(|c| *c != collider);
+        self.scenery.retain(|(c, _)| *c != collider);
     }
 
     /// The config.
@@ -667,7 +711,12 @@ impl World {
 
     /// Whether `collider` is part of the fixed scenery (table, baskets, floor, pedestal).
     pub(crate) fn is_scenery(&self, collider: ColliderHandle) -> bool {
-        self.scenery.contains(&collider)
+        self.scenery.iter().any(|(c, _)| *c == collider)
+    }
+
+    /// The fixed scenery's colliders and what each is part of.
+    pub fn scenery(&self) -> &[(ColliderHandle, Scenery)] {
+        &self.scenery
     }
 }
 

@@ -16,7 +16,10 @@
 //! with objects only — not with the table, the baskets, the pedestal or the gripper — so an arm
 //! sweeping through an object shoves it (and [`Robot::arm_touches`] reports it), while the arm
 //! never jams on the scenery it is mounted beside. The palm and fingers do collide with the
-//! scenery.
+//! scenery. [`Robot::arm_contacts_at`] says what the links would touch at given joints — the
+//! scenery (but the pedestal under the base link) or a link two or more joints away — and the
+//! attempt records it while the arm moves (`Measurements::arm_contacts`); moves are not yet
+//! re-planned around it.
 //!
 //! **Driving.** [`Robot::set_joints`] commands joints for the next step; [`Robot::step_to`]
 //! samples a [`JointTrajectory`] at a time and steps once; [`Robot::follow`] runs a whole
@@ -49,11 +52,12 @@ pub mod trajectory;
 use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
 use crate::physics::rapier::{GROUP_ARM, GROUP_OBJECT, RVec, isometry_to_rapier};
-use crate::physics::world::World;
+use crate::physics::world::{Scenery, World};
 use crate::robot::arm::{ArmModel, ArmModelError, DOF, Joints, JointsError, RigidTransform};
 use crate::robot::gripper::{Gripper, GripperConfig, Touch};
 use crate::robot::trajectory::JointTrajectory;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::parry::query::intersection_test;
 use rapier3d::prelude::{
     ColliderBuilder, ColliderHandle, InteractionGroups, InteractionTestMode, RigidBodyBuilder,
     RigidBodyHandle,
@@ -186,6 +190,38 @@ pub struct Robot {
     q_rad: Joints,
 }
 
+/// Links at least this many joints apart are checked against each other
+/// ([`Robot::arm_contacts_at`]); nearer ones share a joint and overlap there by construction.
+pub const SELF_GAP: usize = 2;
+
+/// An arm link touching what it should not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ArmContact {
+    /// The link, 1 (shoulder) to 6 (the last wrist link).
+    pub link: usize,
+    /// What it touches.
+    pub with: ArmContactee,
+}
+
+/// What an arm link touches ([`ArmContact`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmContactee {
+    /// A piece of the fixed scenery.
+    Scenery(Scenery),
+    /// Another link of the arm (1 to 6).
+    Link(usize),
+}
+
+impl std::fmt::Display for ArmContact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.with {
+            ArmContactee::Scenery(what) => write!(f, "link {} touches {what}", self.link),
+            ArmContactee::Link(j) => write!(f, "link {} touches link {j}", self.link),
+        }
+    }
+}
+
 fn arm_groups() -> InteractionGroups {
     InteractionGroups::new(GROUP_ARM, GROUP_OBJECT, InteractionTestMode::And)
 }
@@ -209,6 +245,7 @@ impl Robot {
             if top > 0.0 {
                 let w = config.pedestal_half_width_m;
                 world.add_fixed_box(
+                    Scenery::Pedestal,
                     [base.x as f32, base.y as f32, 0.5 * top],
                     [w, w, 0.5 * top],
                     0.5,
@@ -397,6 +434,53 @@ impl Robot {
         out
     }
 
+    /// What the arm's links would touch at joints `q_rad` (the robot does not move): a piece
+    /// of the scenery — the table, a basket, the floor, the pedestal under any link but the
+    /// base's — or a link two or more joints away ([`ArmContact`]); empty when `q_rad` is
+    /// clear, or outside the joint limits (the IK never plans there).
+    pub fn arm_contacts_at(&self, world: &World, q_rad: &Joints) -> Vec<ArmContact> {
+        let Ok(pose) = self.arm.forward(q_rad) else {
+            return Vec::new();
+        };
+        let links: Vec<_> = (0..DOF)
+            .filter_map(|i| {
+                let p = isometry_to_rapier(&pose.world_from_link[i])?;
+                let shape = world.physics.colliders.get(self.link_colliders[i])?.shape();
+                Some((i, p, shape))
+            })
+            .collect();
+        let touch =
+            |p1, s1, p2, s2| intersection_test(p1, s1, p2, s2).is_ok_and(|hit| hit.intersecting);
+        let mut out = Vec::new();
+        for &(i, ref p, shape) in &links {
+            for &(c, what) in world.scenery() {
+                if i == 0 && what == Scenery::Pedestal {
+                    continue;
+                }
+                let Some(collider) = world.physics.colliders.get(c) else {
+                    continue;
+                };
+                if touch(p, shape, collider.position(), collider.shape()) {
+                    out.push(ArmContact {
+                        link: i + 1,
+                        with: ArmContactee::Scenery(what),
+                    });
+                }
+            }
+        }
+        for &(i, ref pi, si) in &links {
+            for &(j, ref pj, sj) in links.iter().filter(|(j, _, _)| *j >= i + SELF_GAP) {
+                if touch(pi, si, pj, sj) {
+                    out.push(ArmContact {
+                        link: i + 1,
+                        with: ArmContactee::Link(j + 1),
+                    });
+                }
+            }
+        }
+        out
+    }
+
     /// The link capsules' endpoints in the world at the commanded joints (m; for drawing).
     pub fn link_segments_m(&self) -> [([f64; 3], [f64; 3]); DOF] {
         let pose = self.arm.forward_unchecked(&self.q_rad);
@@ -529,5 +613,63 @@ mod tests {
         assert!(palm.rotation.angle_to(&tool.rotation) < 1e-5);
         // Top-down at home: the pads point down.
         assert!((tool.rotation * Vector3::z()).z < -0.999);
+    }
+
+    /// A robot at home in a world with `config`.
+    fn at_home(config: WorldConfig) -> (World, Robot) {
+        let mut world = World::new(config).unwrap();
+        let robot_config = RobotConfig::default();
+        let home = robot_config.arm.home_rad;
+        let robot = Robot::new(&mut world, robot_config, &home, 0.085).unwrap();
+        (world, robot)
+    }
+
+    #[test]
+    fn the_arm_at_home_touches_nothing_it_should_not() {
+        let (world, robot) = at_home(WorldConfig::default());
+        assert_eq!(robot.arm_contacts_at(&world, &robot.joints_rad()), []);
+    }
+
+    /// A table raised around the elbow is found touching the links there; the pedestal under
+    /// the base link is not reported.
+    #[test]
+    fn a_link_inside_the_table_is_a_contact() {
+        let (_, probe) = at_home(WorldConfig::default());
+        let pose = probe.arm().forward(&probe.joints_rad()).unwrap();
+        let elbow = pose.world_from_link[2].translation.vector;
+        let mut config = WorldConfig::default();
+        config.table.center_m = [elbow.x as f32, elbow.y as f32, elbow.z as f32];
+        config.table.size_m = [0.1, 0.1, 0.1];
+        let (world, robot) = at_home(config);
+        let contacts = robot.arm_contacts_at(&world, &robot.joints_rad());
+        assert!(
+            contacts.contains(&ArmContact {
+                link: 3,
+                with: ArmContactee::Scenery(Scenery::Table),
+            }),
+            "{contacts:?}"
+        );
+        assert!(
+            contacts
+                .iter()
+                .all(|c| c.with != ArmContactee::Scenery(Scenery::Pedestal)),
+            "{contacts:?}"
+        );
+        assert_eq!(contacts[0].to_string(), format!("{}", contacts[0]));
+    }
+
+    /// The elbow folded shut brings the wrist onto the upper arm.
+    #[test]
+    fn a_folded_arm_touches_itself() {
+        let (world, robot) = at_home(WorldConfig::default());
+        let mut q = robot.joints_rad();
+        q[2] = 3.0;
+        let contacts = robot.arm_contacts_at(&world, &q);
+        assert!(
+            contacts
+                .iter()
+                .any(|c| matches!(c.with, ArmContactee::Link(j) if j >= c.link + SELF_GAP)),
+            "{contacts:?}"
+        );
     }
 }

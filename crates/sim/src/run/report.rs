@@ -126,6 +126,12 @@ pub fn summary_table(r: &RunResults) -> String {
          again)",
         s.repeats.radius_m, s.repeats.angle_deg, s.repeats.attempts, s.repeats.failed_again
     );
+    let _ = writeln!(
+        out,
+        "attempts whose arm links touched the table, a basket, the floor, the pedestal or each \
+         other: {} (checked, not yet avoided)",
+        s.arm_contact_attempts
+    );
     if s.proposals.checked > 0 {
         let _ = writeln!(
             out,

@@ -203,6 +203,10 @@ pub struct Summary {
     /// Attempts that tried a grasp that had failed earlier in their round.
     #[serde(default)]
     pub repeats: Repeats,
+    /// Attempts in which an arm link touched the scenery or another link
+    /// ([`crate::grasping::attempt::Measurements::arm_contacts`]).
+    #[serde(default)]
+    pub arm_contact_attempts: usize,
     /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
     /// (one per object per round: the first attempt at it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -492,6 +496,10 @@ fn summarize_pooled(
             repeat_skipped: attempts.iter().map(|a| a.proposals.repeat_skipped).sum(),
         },
         repeats: count_repeats(attempts, repeats_radius_m, repeats_angle_deg),
+        arm_contact_attempts: attempts
+            .iter()
+            .filter(|a| !a.measured.arm_contacts.is_empty())
+            .count(),
         packing: packing.then(|| {
             let packed: Vec<(Option<&str>, &PackingRecord)> = attempts
                 .iter()

@@ -61,7 +61,7 @@ use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
 use crate::physics::rapier::pose_to_rapier;
 use crate::physics::shapes::LibraryShapes;
-use crate::physics::world::World;
+use crate::physics::world::{Scenery, World};
 
 /// How the table is set for a round.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -656,7 +656,7 @@ impl TableSetting<'_> {
         .into_iter()
         .map(|(c, half)| {
             let mu = self.world.config().table.friction;
-            self.world.add_fixed_box(c, half, mu)
+            self.world.add_fixed_box(Scenery::Wall, c, half, mu)
         })
         .collect()
     }

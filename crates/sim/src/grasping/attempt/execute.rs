@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::physics::config::BasketConfig;
 use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
-use crate::robot::RobotError;
+use crate::robot::{ArmContact, RobotError};
 use crate::timing::{WallTimes, Work};
 
 use super::config::{AttemptConfig, AttemptError};
@@ -67,6 +67,11 @@ pub struct Measurements {
     pub placed_motion: Option<[f32; 2]>,
     /// Its lowest collider point then (m, world).
     pub placed_lowest_z_m: Option<f32>,
+    /// What the arm's links touched that they should not — the table, a basket, the floor,
+    /// the pedestal, each other — in the attempt's moves from the ready pose to the release,
+    /// each contact once (they are checked, not yet avoided: the links pass through).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub arm_contacts: Vec<ArmContact>,
     /// When it was inside the basket but faster than at rest: how far its centre of mass moved
     /// (m) and how far it turned (rad) over the next [`REST_WINDOW_S`].
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -106,6 +111,7 @@ pub fn execute(
         .objects()
         .map(|h| Ok((h, cell.world.object_center_of_mass_m(h)?[2])))
         .collect::<Result<_, WorldError>>()?;
+    cell.arm_contacts.clear();
     let mut attempt = Attempt {
         cell,
         plan,
@@ -113,7 +119,9 @@ pub fn execute(
         wall,
         out: Execution::default(),
     };
-    match attempt.run(target, &rest) {
+    let outcome = attempt.run(target, &rest);
+    attempt.out.measured.arm_contacts = std::mem::take(&mut attempt.cell.arm_contacts);
+    match outcome {
         Ok(()) => Ok(attempt.out),
         Err(Stop::Failed(reason)) => {
             attempt.out.reason = Some(reason);

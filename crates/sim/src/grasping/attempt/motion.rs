@@ -8,7 +8,7 @@ use crate::physics::world::World;
 use crate::robot::arm::Joints;
 use crate::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
 use crate::robot::trajectory::{JointTrajectory, LinearMove, MotionError, plan_linear_move};
-use crate::robot::{Robot, RobotConfig};
+use crate::robot::{ArmContact, Robot, RobotConfig};
 use crate::timing::{WallTimes, Work};
 
 use super::config::{AttemptConfig, AttemptError};
@@ -26,7 +26,15 @@ pub struct Cell {
     /// The joints of the ready pose, where [`park`] brings the arm back to (home for
     /// [`Cell::new`]).
     pub ready_rad: Joints,
+    /// What the arm's links touched that they should not (the scenery, each other) in the
+    /// moves since this was last emptied, each contact once ([`Robot::arm_contacts_at`] every
+    /// [`ARM_CHECK_STEPS`] steps of a move); an attempt takes them into its record.
+    pub arm_contacts: Vec<ArmContact>,
 }
+
+/// Steps between two checks of the arm's links against the scenery and each other while it
+/// moves (default 4: every 17 ms at 240 Hz, about 2 mm of tool travel at the carry's speed).
+pub const ARM_CHECK_STEPS: u32 = 4;
 
 impl Cell {
     /// Adds the robot (at its home posture, gripper fully open) to `world`.
@@ -40,6 +48,7 @@ impl Cell {
             robot,
             ik,
             ready_rad: home,
+            arm_contacts: Vec::new(),
         })
     }
 
@@ -75,6 +84,7 @@ impl Cell {
             robot,
             ik,
             ready_rad: ready,
+            arm_contacts: Vec::new(),
         })
     }
 
@@ -105,6 +115,14 @@ pub(super) fn follow(
             let t = (f64::from(k) * dt).min(duration);
             cell.robot.step_to(&mut cell.world, trajectory, t)?;
             arm_collision |= !cell.robot.arm_touches(&cell.world).is_empty();
+            if k % ARM_CHECK_STEPS == 0 || k == steps {
+                let q = cell.robot.joints_rad();
+                for contact in cell.robot.arm_contacts_at(&cell.world, &q) {
+                    if !cell.arm_contacts.contains(&contact) {
+                        cell.arm_contacts.push(contact);
+                    }
+                }
+            }
             if guarded && touches_for_real(&cell.world, cell.robot.gripper()) {
                 return Ok(Motion {
                     stopped_by_contact: true,
