@@ -140,8 +140,9 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
     };
     // parry's VHACD unwraps a convex hull that can fail on some voxelisations (YCB's
     // `plate`, parry 0.31: "exiting an unfinished work"). A mesh it cannot cut is
-    // one part, its hull, as a solid mesh is: a loaded file never ends the process.
-    let hulls = std::panic::catch_unwind(|| {
+    // one part, its hull, as a solid mesh is: a loaded file never ends the process, nor
+    // prints a panic's backtrace in the middle of a run.
+    let hulls = quietly(|| {
         VHACD::decompose(&params, &vertices, &source.triangles, true)
             .compute_exact_convex_hulls(&vertices, &source.triangles)
     });
@@ -358,8 +359,43 @@ impl LibraryShapes {
     }
 }
 
+thread_local! {
+    /// Set while [`quietly`] runs its closure on this thread.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f`, catching a panic, without the panic hook printing it: the hook installed once
+/// here stays silent on a thread inside `quietly` and hands every other panic to the hook that
+/// was there before.
+fn quietly<R>(f: impl FnOnce() -> R + std::panic::UnwindSafe) -> std::thread::Result<R> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let before = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(std::cell::Cell::get) {
+                before(info);
+            }
+        }));
+    });
+    QUIET.with(|q| q.set(true));
+    let out = std::panic::catch_unwind(f);
+    QUIET.with(|q| q.set(false));
+    out
+}
+
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_panic_inside_quietly_is_caught_and_the_thread_goes_on() {
+        assert!(super::quietly(|| panic!("parry gave up")).is_err());
+        assert_eq!(super::quietly(|| 7).unwrap(), 7);
+        assert!(
+            !super::QUIET.with(std::cell::Cell::get),
+            "the flag is cleared"
+        );
+    }
+
     use crate::physics::config::WorldConfig;
     use crate::physics::hull::{SOLID_FRACTION, mesh_solid_fraction};
     use crate::physics::world::World;
