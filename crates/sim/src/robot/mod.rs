@@ -655,7 +655,11 @@ mod tests {
                 .all(|c| c.with != ArmContactee::Scenery(Scenery::Pedestal)),
             "{contacts:?}"
         );
-        assert_eq!(contacts[0].to_string(), format!("{}", contacts[0]));
+        let table = ArmContact {
+            link: 3,
+            with: ArmContactee::Scenery(Scenery::Table),
+        };
+        assert_eq!(table.to_string(), "link 3 touches the table");
     }
 
     /// The elbow folded shut brings the wrist onto the upper arm.
