@@ -36,11 +36,12 @@ fn sim(out: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
-const REASONS: [&str; 9] = [
+const REASONS: [&str; 10] = [
     "no_grasp_found",
     "wider_than_gripper",
     "unreachable",
     "collision_on_approach",
+    "arm_collision",
     "missed",
     "slipped_during_lift",
     "slipped_during_carry",

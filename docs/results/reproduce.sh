@@ -39,6 +39,7 @@ TABLES=(
   "speed|ycb, ae for the network rows|Speed"
   "sensor-noise|ycb, ae for the network row, about an hour|The robot with the depth sensor model (the defaults) and without"
   "irregular|ycb for the last row, about 5 minutes|Irregular shapes: placement (validation seed 0, test seeds 1 and 2, the other YCB meshes)"
+  "arm|ycb, about 5 minutes|An arm that can collide: the default cell, and a bin in the carry's way"
 )
 
 ycb() { echo '[ -d ycb ] || lgdm sim objects --out ycb/'; }
@@ -207,6 +208,16 @@ table_irregular() {
   done
   echo '[ -d ycb-others ] || lgdm sim objects --set others --out ycb-others/'
   echo "lgdm sim grasp --scenario isolated --grasp analytic --meshes ycb-others/ --rounds 128 --seed 0 --out $t/ycb-others --progress none"
+}
+
+table_arm() {
+  local t=runs/arm
+  ycb
+  echo "lgdm sim grasp --scenario isolated --grasp analytic --rounds 100 --seed 0 --out $t/isolated --progress none"
+  echo "lgdm sim grasp --scenario isolated --grasp analytic --rounds 100 --seed 0 --config $repo/docs/results/bin-in-the-way.toml --out $t/isolated-bin --progress none"
+  echo '[ -d irregular-1 ] || lgdm sim objects --set irregular --seed 1 --out irregular-1/'
+  echo "lgdm sim grasp --scenario isolated --grasp analytic --meshes irregular-1/ --rounds 120 --seed 0 --out $t/irregular-1 --progress none"
+  echo "lgdm sim pick-place --meshes ycb/ --objects 14 --attempts 750 --seed 0 --out $t/paper-objects --progress none"
 }
 
 table_speed() {

@@ -157,7 +157,7 @@ fn check_colliders(name: &str, mesh: &Mesh) {
         mesh: mesh.clone(),
         physics: Default::default(),
     }];
-    lgdm_sim::tasks::scenario::check_library(&config, &library).unwrap();
+    lgdm_sim::tasks::scenario::check_library(&config, &library, &[0, 1]).unwrap();
     LibraryShapes::new(ShapeConfig::default(), 1)
         .check(&config, &library, &[0])
         .unwrap();

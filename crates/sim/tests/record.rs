@@ -3,7 +3,8 @@
 //! (`/tf` holds every arm link, the palm, both fingers and the object; the scene draws the
 //! object's mesh in its frame; images and calibration match the cameras), log times are sim
 //! times and never go back, and the same seed gives the same bytes — while the run's results
-//! are exactly those of a run without recording.
+//! are exactly those of a run without recording; each arm contact an attempt avoided is an
+//! event.
 //!
 //! Run in release (`cargo test -p lgdm-sim --release --test record`).
 
@@ -389,4 +390,51 @@ fn pick_place_recordings_label_every_recognised_object() {
         }
     }
     assert_eq!(labels_seen, 3);
+}
+
+/// Each contact an attempt avoided is an event on `/events`: with a bin in the carry's way
+/// (`docs/results/bin-in-the-way.toml`), every attempt whose planned moves would have swept
+/// something through it logs what, once per contact.
+#[test]
+fn avoided_arm_contacts_are_events() {
+    let mut spec = RunSpec::new(Scenario::Isolated, 3, 0);
+    let mut bin = spec.config.world.baskets[0].clone();
+    let top = spec.config.world.table.top_z_m();
+    bin.floor_center_m = [0.58, -0.4, top + 0.01];
+    bin.inner_size_m = [0.15, 0.15];
+    bin.wall_height_m = 0.25;
+    spec.config.world.baskets.push(bin);
+    let mut source = builtin_source("analytic", 0).unwrap();
+    let mut sink: Vec<RoundRecording> = Vec::new();
+    let results = run_recorded(
+        &spec,
+        &library(),
+        source.as_mut(),
+        &RecordConfig::default(),
+        &mut sink,
+    )
+    .unwrap();
+    let expected: Vec<String> = results
+        .attempts
+        .iter()
+        .flat_map(|a| &a.measured.avoided_contacts)
+        .map(|c| format!("arm contact avoided: {c}"))
+        .collect();
+    assert!(!expected.is_empty(), "{:?}", results.attempts);
+    assert!(
+        expected.iter().all(|e| e.contains("basket 2")),
+        "{expected:?}"
+    );
+    let logged: Vec<String> = sink
+        .iter()
+        .flat_map(|round| {
+            on(&messages(&round.mcap), "/events")
+                .into_iter()
+                .cloned()
+                .collect::<Vec<_>>()
+        })
+        .map(|r| Log::decode(r.6.as_slice()).unwrap().message)
+        .filter(|m| m.starts_with("arm contact"))
+        .collect();
+    assert_eq!(logged, expected);
 }

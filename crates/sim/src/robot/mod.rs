@@ -17,9 +17,10 @@
 //! sweeping through an object shoves it (and [`Robot::arm_touches`] reports it), while the arm
 //! never jams on the scenery it is mounted beside. The palm and fingers do collide with the
 //! scenery. [`Robot::arm_contacts_at`] says what the links would touch at given joints — the
-//! scenery (but the pedestal under the base link) or a link two or more joints away — and the
-//! attempt records it while the arm moves (`Measurements::arm_contacts`); moves are not yet
-//! re-planned around it.
+//! scenery (but the pedestal under the base link) or a link two or more joints away — and
+//! [`Robot::carried_contacts_at`] what the gripper and the object held would touch in the
+//! scenery; an attempt checks every move with them before it is made, and re-plans or turns
+//! down one that would touch (`grasping::attempt`).
 //!
 //! **Driving.** [`Robot::set_joints`] commands joints for the next step; [`Robot::step_to`]
 //! samples a [`JointTrajectory`] at a time and steps once; [`Robot::follow`] runs a whole
@@ -51,13 +52,17 @@ pub mod trajectory;
 
 use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
-use crate::physics::rapier::{GROUP_ARM, GROUP_OBJECT, RVec, isometry_to_rapier};
+use crate::physics::rapier::{
+    GROUP_ARM, GROUP_OBJECT, RPose, RVec, isometry_to_rapier, rapier_to_isometry,
+};
 use crate::physics::world::{Scenery, World};
 use crate::robot::arm::{ArmModel, ArmModelError, DOF, Joints, JointsError, RigidTransform};
 use crate::robot::gripper::{Gripper, GripperConfig, Touch};
 use crate::robot::trajectory::JointTrajectory;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::parry::bounding_volume::BoundingVolume;
 use rapier3d::parry::query::intersection_test;
+use rapier3d::parry::shape::Shape;
 use rapier3d::prelude::{
     ColliderBuilder, ColliderHandle, InteractionGroups, InteractionTestMode, RigidBodyBuilder,
     RigidBodyHandle,
@@ -194,32 +199,61 @@ pub struct Robot {
 /// ([`Robot::arm_contacts_at`]); nearer ones share a joint and overlap there by construction.
 pub const SELF_GAP: usize = 2;
 
-/// An arm link touching what it should not.
+/// A part of the arm touching what it should not.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ArmContact {
-    /// The link, 1 (shoulder) to 6 (the last wrist link).
-    pub link: usize,
+    /// The part.
+    pub part: ArmPart,
     /// What it touches.
     pub with: ArmContactee,
 }
 
-/// What an arm link touches ([`ArmContact`]).
+/// The part of the arm an [`ArmContact`] is of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmPart {
+    /// A link, 1 (shoulder) to 6 (the last wrist link).
+    Link(usize),
+    /// The gripper: its palm or a finger.
+    Gripper,
+    /// The object the gripper holds.
+    Held,
+}
+
+/// What an arm part touches ([`ArmContact`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ArmContactee {
     /// A piece of the fixed scenery.
     Scenery(Scenery),
-    /// Another link of the arm (1 to 6).
+    /// A link of the arm (1 to 6).
     Link(usize),
+}
+
+impl std::fmt::Display for ArmPart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ArmPart::Link(i) => write!(f, "link {i}"),
+            ArmPart::Gripper => f.write_str("the gripper"),
+            ArmPart::Held => f.write_str("the object held"),
+        }
+    }
 }
 
 impl std::fmt::Display for ArmContact {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.with {
-            ArmContactee::Scenery(what) => write!(f, "link {} touches {what}", self.link),
-            ArmContactee::Link(j) => write!(f, "link {} touches link {j}", self.link),
+            ArmContactee::Scenery(what) => write!(f, "{} touches {what}", self.part),
+            ArmContactee::Link(j) => write!(f, "{} touches link {j}", self.part),
         }
     }
+}
+
+/// Whether two shapes at their poses intersect: their bounding boxes first (most pairs of a
+/// link or a held object and the scenery are far apart), then parry's exact test.
+fn touch(p1: &RPose, s1: &dyn Shape, p2: &RPose, s2: &dyn Shape) -> bool {
+    s1.compute_aabb(p1).intersects(&s2.compute_aabb(p2))
+        && intersection_test(p1, s1, p2, s2).is_ok_and(|hit| hit.intersecting)
 }
 
 fn arm_groups() -> InteractionGroups {
@@ -449,8 +483,6 @@ impl Robot {
                 Some((i, p, shape))
             })
             .collect();
-        let touch =
-            |p1, s1, p2, s2| intersection_test(p1, s1, p2, s2).is_ok_and(|hit| hit.intersecting);
         let mut out = Vec::new();
         for &(i, ref p, shape) in &links {
             for &(c, what) in world.scenery() {
@@ -462,7 +494,7 @@ impl Robot {
                 };
                 if touch(p, shape, collider.position(), collider.shape()) {
                     out.push(ArmContact {
-                        link: i + 1,
+                        part: ArmPart::Link(i + 1),
                         with: ArmContactee::Scenery(what),
                     });
                 }
@@ -472,9 +504,61 @@ impl Robot {
             for &(j, ref pj, sj) in links.iter().filter(|(j, _, _)| *j >= i + SELF_GAP) {
                 if touch(pi, si, pj, sj) {
                     out.push(ArmContact {
-                        link: i + 1,
+                        part: ArmPart::Link(i + 1),
                         with: ArmContactee::Link(j + 1),
                     });
+                }
+            }
+        }
+        out
+    }
+
+    /// What the gripper (its palm and fingers) and the object `held`, carried rigidly at the
+    /// tool as they are now, would touch in the scenery with the arm at joints `q_rad`
+    /// ([`ArmPart::Gripper`], [`ArmPart::Held`]); empty outside the joint limits. For moves
+    /// between two poses in the air (the approach, the carry, the way back), where the fingers
+    /// and what they hold should meet nothing fixed: the descent and the lowering into a basket
+    /// bring them close to the table and the floor by design.
+    pub fn carried_contacts_at(
+        &self,
+        world: &World,
+        q_rad: &Joints,
+        held: Option<ObjectHandle>,
+    ) -> Vec<ArmContact> {
+        let Ok(pose) = self.arm.forward(q_rad) else {
+            return Vec::new();
+        };
+        let tool_now = self.world_from_tool();
+        let mut carried: Vec<(ArmPart, ColliderHandle)> = self
+            .gripper
+            .part_colliders()
+            .into_iter()
+            .map(|(_, c)| (ArmPart::Gripper, c))
+            .collect();
+        if let Some(c) = held.and_then(|h| world.object_collider(h).ok()) {
+            carried.push((ArmPart::Held, c));
+        }
+        let mut out = Vec::new();
+        for (part, c) in carried {
+            let Some(collider) = world.physics.colliders.get(c) else {
+                continue;
+            };
+            let tool_from_part = tool_now.inverse() * rapier_to_isometry(collider.position());
+            let Some(at) = isometry_to_rapier(&(pose.world_from_tool * tool_from_part)) else {
+                continue;
+            };
+            for &(s, what) in world.scenery() {
+                let Some(scenery) = world.physics.colliders.get(s) else {
+                    continue;
+                };
+                let contact = ArmContact {
+                    part,
+                    with: ArmContactee::Scenery(what),
+                };
+                if !out.contains(&contact)
+                    && touch(&at, collider.shape(), scenery.position(), scenery.shape())
+                {
+                    out.push(contact);
                 }
             }
         }
@@ -644,7 +728,7 @@ mod tests {
         let contacts = robot.arm_contacts_at(&world, &robot.joints_rad());
         assert!(
             contacts.contains(&ArmContact {
-                link: 3,
+                part: ArmPart::Link(3),
                 with: ArmContactee::Scenery(Scenery::Table),
             }),
             "{contacts:?}"
@@ -656,7 +740,7 @@ mod tests {
             "{contacts:?}"
         );
         let table = ArmContact {
-            link: 3,
+            part: ArmPart::Link(3),
             with: ArmContactee::Scenery(Scenery::Table),
         };
         assert_eq!(table.to_string(), "link 3 touches the table");
@@ -672,8 +756,28 @@ mod tests {
         assert!(
             contacts
                 .iter()
-                .any(|c| matches!(c.with, ArmContactee::Link(j) if j >= c.link + SELF_GAP)),
+                .any(|c| matches!((c.part, c.with), (ArmPart::Link(i), ArmContactee::Link(j)) if j >= i + SELF_GAP)),
             "{contacts:?}"
         );
+    }
+
+    /// A table raised to the tool at home holds the gripper: a contact of the gripper, and none
+    /// of the links.
+    #[test]
+    fn a_gripper_inside_the_table_is_a_contact() {
+        let (_, probe) = at_home(WorldConfig::default());
+        let tool = probe.world_from_tool().translation.vector;
+        let mut config = WorldConfig::default();
+        config.table.center_m = [tool.x as f32, tool.y as f32, tool.z as f32];
+        config.table.size_m = [0.1, 0.1, 0.02];
+        let (world, robot) = at_home(config);
+        let q = robot.joints_rad();
+        let gripper = ArmContact {
+            part: ArmPart::Gripper,
+            with: ArmContactee::Scenery(Scenery::Table),
+        };
+        assert_eq!(robot.carried_contacts_at(&world, &q, None), [gripper]);
+        assert_eq!(gripper.to_string(), "the gripper touches the table");
+        assert_eq!(robot.arm_contacts_at(&world, &q), []);
     }
 }

@@ -12,6 +12,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
+use crate::grasping::attempt::FailureReason;
 use crate::run::results::RunResults;
 use crate::tasks::packing::basket_name;
 
@@ -126,11 +127,18 @@ pub fn summary_table(r: &RunResults) -> String {
          again)",
         s.repeats.radius_m, s.repeats.angle_deg, s.repeats.attempts, s.repeats.failed_again
     );
+    let refused = s
+        .failure_reasons
+        .get(FailureReason::ArmCollision.as_str())
+        .copied()
+        .unwrap_or(0);
     let _ = writeln!(
         out,
-        "attempts whose arm links touched the table, a basket, the floor, the pedestal or each \
-         other: {} (checked, not yet avoided)",
-        s.arm_contact_attempts
+        "attempts with a planned move that would have swept the arm, the gripper or the object \
+         held through the table, a basket, the floor, the pedestal or a pile wall (or a link \
+         through another): {} ({} re-planned with a lifted detour, {} turned down as \
+         arm_collision); attempts that touched them anyway, on the way back: {}",
+        s.avoided_contact_attempts, s.detour_attempts, refused, s.arm_contact_attempts
     );
     if s.proposals.checked > 0 {
         let _ = writeln!(

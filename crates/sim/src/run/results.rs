@@ -204,9 +204,19 @@ pub struct Summary {
     #[serde(default)]
     pub repeats: Repeats,
     /// Attempts in which an arm link touched the scenery or another link
-    /// ([`crate::grasping::attempt::Measurements::arm_contacts`]).
+    /// ([`crate::grasping::attempt::Measurements::arm_contacts`]: on the way back to the ready
+    /// pose, which is made even when no clear way is found).
     #[serde(default)]
     pub arm_contact_attempts: usize,
+    /// Attempts with a planned move whose links would have touched the scenery or another link
+    /// ([`crate::grasping::attempt::Measurements::avoided_contacts`]): re-planned, left out or
+    /// turned down (`arm_collision` in the failure reasons).
+    #[serde(default)]
+    pub avoided_contact_attempts: usize,
+    /// Attempts with at least one move replaced by a lifted detour
+    /// ([`crate::grasping::attempt::Measurements::detours`]).
+    #[serde(default)]
+    pub detour_attempts: usize,
     /// Pick-and-place: first guesses whose category was right (and trusted) / recognitions
     /// (one per object per round: the first attempt at it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -500,6 +510,11 @@ fn summarize_pooled(
             .iter()
             .filter(|a| !a.measured.arm_contacts.is_empty())
             .count(),
+        avoided_contact_attempts: attempts
+            .iter()
+            .filter(|a| !a.measured.avoided_contacts.is_empty())
+            .count(),
+        detour_attempts: attempts.iter().filter(|a| a.measured.detours > 0).count(),
         packing: packing.then(|| {
             let packed: Vec<(Option<&str>, &PackingRecord)> = attempts
                 .iter()

@@ -551,7 +551,7 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             crop: Some((&view.crop, candidate.crop.rectangle())),
         };
         self.observer.grasp_planned(&cell.world, &shown);
-        let exec = execute(cell, &plan, view.object, cfg, &mut clock.wall)?;
+        let mut exec = execute(cell, &plan, view.object, cfg, &mut clock.wall)?;
         // A held object was carried to the basket: the carry height is clear there. Otherwise
         // the fingers are among the objects: back up to the pre-grasp height first.
         let up_to_z_m = if exec.grasp_success {
@@ -560,6 +560,12 @@ impl<F: FnMut(Progress)> Runner<'_, F> {
             plan.pregrasp_z_m
         };
         park(cell, up_to_z_m, cfg, &mut clock.wall)?;
+        // The way back is part of the attempt: what its links touched joins the record.
+        for contact in std::mem::take(&mut cell.arm_contacts) {
+            if !exec.measured.arm_contacts.contains(&contact) {
+                exec.measured.arm_contacts.push(contact);
+            }
+        }
         self.observer
             .grasp_done(cell, &shown, &exec, cfg.target_basket)
             .map_err(SimError::Observer)?;

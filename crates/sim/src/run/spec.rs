@@ -168,7 +168,12 @@ impl RunSpec {
             return Err(SimError::EmptyLibrary);
         }
         self.config.validate()?;
-        check_library(&self.config.world, library)?;
+        // The baskets objects go into; any other is scenery (a bin in the way, say).
+        let targets = match &self.packing {
+            Some(p) => vec![p.target_basket, p.other_basket],
+            None => vec![self.config.attempt.target_basket],
+        };
+        check_library(&self.config.world, library, &targets)?;
         if let Some(packing) = &self.packing {
             let Some(labels) = labels else {
                 return Err(PackingError::NoRecognition.into());

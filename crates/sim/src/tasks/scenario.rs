@@ -742,12 +742,15 @@ fn packed_pose(
 }
 
 /// Checks that every library object can be simulated (its convex hull can be built) and can
-/// land in every basket, naming the first that cannot: a basket whose shorter inner side is
-/// below the object's smallest extent, or whose inner diagonal is below its middle one (the
-/// extents of the mesh's bounding box), can never hold it, so a run would only record drops.
+/// land in every basket a run places objects in (`targets`, indices into the world's baskets;
+/// the others are only scenery), naming the first that cannot: a basket whose shorter inner
+/// side is below the object's smallest extent, or whose inner diagonal is below its middle one
+/// (the extents of the mesh's bounding box), can never hold it, so a run would only record
+/// drops.
 pub fn check_library(
     world_config: &crate::physics::config::WorldConfig,
     library: &[ObjectModel],
+    targets: &[usize],
 ) -> Result<(), WorldError> {
     let mut world = World::new(world_config.clone())?;
     let top = world_config.table.top_z_m();
@@ -763,7 +766,10 @@ pub fn check_library(
             continue;
         };
         extent.sort_by(f32::total_cmp);
-        for (b, basket) in world_config.baskets.iter().enumerate() {
+        for &b in targets {
+            let Some(basket) = world_config.baskets.get(b) else {
+                continue;
+            };
             let [ix, iy] = basket.inner_size_m;
             if extent[0] > ix.min(iy) || extent[1] > ix.hypot(iy) {
                 return Err(WorldError::InvalidConfig {
@@ -810,20 +816,23 @@ mod tests {
     use rand::SeedableRng;
 
     /// A basket that cannot hold an object of the library is refused before any work, naming
-    /// the basket's field and the object; the default baskets hold every procedural object.
+    /// the basket's field and the object, when objects go into it; the default baskets hold
+    /// every procedural object.
     #[test]
     fn a_basket_smaller_than_an_object_is_refused() {
         let library = procedural_library(&lgdm_pointcloud::objects::CATEGORIES, 1, 0).unwrap();
         let mut config = WorldConfig::default();
-        check_library(&config, &library).unwrap();
+        check_library(&config, &library, &[0, 1]).unwrap();
         config.baskets[1].inner_size_m = [0.05, 0.3];
-        match check_library(&config, &library) {
+        match check_library(&config, &library, &[0, 1]) {
             Err(WorldError::InvalidConfig { field, reason }) => {
                 assert_eq!(field, "baskets[1].inner_size_m");
                 assert!(reason.contains("cannot hold"), "{reason}");
             }
             other => panic!("{other:?}"),
         }
+        // A basket no object goes into is only scenery: a small one is fine.
+        check_library(&config, &library, &[0]).unwrap();
     }
 
     /// The failed-grasp memory's radius and angle are refused negative or NaN, naming the field;

@@ -8,12 +8,14 @@ use serde::{Deserialize, Serialize};
 use crate::physics::config::BasketConfig;
 use crate::physics::error::WorldError;
 use crate::physics::object::ObjectHandle;
+use crate::robot::trajectory::{JointTrajectory, LinearMove};
 use crate::robot::{ArmContact, RobotError};
 use crate::timing::{WallTimes, Work};
 
 use super::config::{AttemptConfig, AttemptError};
 use super::motion::{
-    Cell, follow, hold, plan_joint_move, plan_straight, plan_straight_top_down, settle_opening,
+    Cell, Check, Route, first_contact, follow, follow_route, hold, plan_joint_move, plan_straight,
+    plan_straight_top_down, route, settle_opening,
 };
 use super::plan::GraspPlan;
 use super::verdict::{
@@ -68,14 +70,29 @@ pub struct Measurements {
     /// Its lowest collider point then (m, world).
     pub placed_lowest_z_m: Option<f32>,
     /// What the arm's links touched that they should not — the table, a basket, the floor,
-    /// the pedestal, each other — in the attempt's moves from the ready pose to the release,
-    /// each contact once (they are checked, not yet avoided: the links pass through).
+    /// the pedestal, each other — from the ready pose through the way back to it, each
+    /// contact once. Every move of the attempt is checked before it is made and avoided
+    /// (`avoided_contacts`), so these come from the way back, which is made even when neither
+    /// it nor a detour is clear ([`crate::grasping::attempt::park`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub arm_contacts: Vec<ArmContact>,
+    /// What the arm's links would have touched in the moves the attempt planned, had they been
+    /// made as planned: each was replaced by a lifted detour (`detours`), left out (the lowering
+    /// into the basket, the rise after the release: the object is released higher, the arm
+    /// parks from where it is) or turned down (the attempt fails as `arm_collision`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub avoided_contacts: Vec<ArmContact>,
+    /// Moves replaced by a lifted detour because their links would have touched something.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub detours: u32,
     /// When it was inside the basket but faster than at rest: how far its centre of mass moved
     /// (m) and how far it turned (rad) over the next [`REST_WINDOW_S`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub placed_drift: Option<[f32; 2]>,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// How long an object inside the basket but not slower than at rest is watched (s; 0.5).
@@ -187,12 +204,75 @@ impl Attempt<'_> {
         let judged = self.close(target)?;
         self.lift(descent.reached_z_m)?;
         let object = self.judge_grasp(judged, descent.collided, rest)?;
-        let (basket, at) = self.carry(object)?;
+        let (basket, at) = match self.carry(object) {
+            Err(Stop::Failed(FailureReason::ArmCollision)) => {
+                self.put_back(descent.reached_z_m)?;
+                return Err(Stop::Failed(FailureReason::ArmCollision));
+            }
+            other => other?,
+        };
         self.release(at)?;
         self.judge_placement(object, &basket)
     }
 
-    /// Phase 1, pre-grasp: a straight move down from the ready pose, opening meanwhile.
+    /// Records a contact a planned move would have made.
+    fn avoided(&mut self, contact: ArmContact) {
+        let avoided = &mut self.out.measured.avoided_contacts;
+        if !avoided.contains(&contact) {
+            avoided.push(contact);
+        }
+    }
+
+    /// `direct`, or a lifted detour when its links would touch something ([`route`]); turned
+    /// down as `arm_collision` when no detour is clear.
+    fn clear_route(
+        &mut self,
+        direct: JointTrajectory,
+        check: Check,
+        params: &LinearMove,
+        speed_scale: f64,
+    ) -> Result<Route, Stop> {
+        match route(self.cell, direct, check, params, speed_scale, self.wall) {
+            Ok(way) => {
+                if let Some(contact) = way.avoided {
+                    self.avoided(contact);
+                    self.out.measured.detours += 1;
+                }
+                Ok(way)
+            }
+            Err(contact) => {
+                self.avoided(contact);
+                Err(Stop::Failed(FailureReason::ArmCollision))
+            }
+        }
+    }
+
+    /// A move straight up or down, which no detour replaces: turned down as `arm_collision`
+    /// when its links would touch something.
+    fn clear_or_refuse(&mut self, straight: &JointTrajectory) -> Result<(), Stop> {
+        match first_contact(self.cell, straight, Check::Links, self.wall) {
+            Some(contact) => {
+                self.avoided(contact);
+                Err(Stop::Failed(FailureReason::ArmCollision))
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// Whether a move the attempt can do without (the lowering into the basket, the rise
+    /// after the release) is clear; the contact it would have made is recorded when it is not.
+    fn clear_or_leave_out(&mut self, optional: &JointTrajectory) -> bool {
+        match first_contact(self.cell, optional, Check::Links, self.wall) {
+            Some(contact) => {
+                self.avoided(contact);
+                false
+            }
+            None => true,
+        }
+    }
+
+    /// Phase 1, pre-grasp: a straight move down from the ready pose, opening meanwhile — or a
+    /// lifted detour when the arm's links would touch something on the way ([`route`]).
     fn approach(&mut self) -> Result<(), Stop> {
         let [x, y, _] = self.plan.tcp_m;
         self.cell
@@ -208,7 +288,9 @@ impl Attempt<'_> {
         ) else {
             return Err(Stop::Failed(FailureReason::Unreachable));
         };
-        let m = follow(self.cell, &approach, false, self.wall)?;
+        let config = self.config;
+        let way = self.clear_route(approach, Check::Carried(None), &config.transit, 1.0)?;
+        let m = follow_route(self.cell, &way, self.wall)?;
         self.out.measured.arm_collision |= m.arm_collision;
         settle_opening(self.cell, 1.0, self.wall)?;
         Ok(())
@@ -221,6 +303,7 @@ impl Attempt<'_> {
         else {
             return Err(Stop::Failed(FailureReason::Unreachable));
         };
+        self.clear_or_refuse(&descent)?;
         let m = follow(self.cell, &descent, true, self.wall)?;
         let measured = &mut self.out.measured;
         measured.arm_collision |= m.arm_collision;
@@ -271,6 +354,7 @@ impl Attempt<'_> {
         else {
             return Err(Stop::Failed(FailureReason::Unreachable));
         };
+        self.clear_or_refuse(&lift)?;
         follow(self.cell, &lift, false, self.wall)?;
         let touching = touching_objects(&self.cell.world, self.cell.robot.gripper());
         self.out.measured.objects_touching_after_lift = touching.len();
@@ -382,7 +466,13 @@ impl Attempt<'_> {
             }
         };
         let [bx, by, _] = at;
-        follow(self.cell, &carry, false, self.wall)?;
+        let way = self.clear_route(
+            carry,
+            Check::Carried(Some(object)),
+            &config.lift,
+            config.carry_speed_scale,
+        )?;
+        follow_route(self.cell, &way, self.wall)?;
         if !still_holds(self.cell, object)? {
             return Err(Stop::Failed(FailureReason::SlippedDuringCarry));
         }
@@ -393,6 +483,7 @@ impl Attempt<'_> {
         if release_z < tcp_z - 1e-3
             && let Ok(lower) =
                 plan_straight(self.cell, [bx, by, release_z], &config.lift, self.wall)
+            && self.clear_or_leave_out(&lower)
         {
             follow(self.cell, &lower, false, self.wall)?;
         }
@@ -400,6 +491,27 @@ impl Attempt<'_> {
             return Err(Stop::Failed(FailureReason::SlippedDuringCarry));
         }
         Ok((basket, [bx, by]))
+    }
+
+    /// When the carry was turned down: lowers the object held straight back to where it was
+    /// grasped (the tool 1 cm above where the descent stopped), when that move is clear, and
+    /// opens — rather than dropping it from the lift's height.
+    fn put_back(&mut self, grasped_z_m: f64) -> Result<(), Stop> {
+        let [x, y, _] = self.plan.tcp_m;
+        let config = self.config;
+        if let Ok(down) = plan_straight(
+            self.cell,
+            [x, y, grasped_z_m + 0.01],
+            &config.lift,
+            self.wall,
+        ) && self.clear_or_leave_out(&down)
+        {
+            follow(self.cell, &down, false, self.wall)?;
+        }
+        let stroke = self.cell.robot.gripper().config().stroke_m;
+        self.cell.robot.gripper_mut().set_opening(stroke)?;
+        settle_opening(self.cell, 2.0, self.wall)?;
+        Ok(())
     }
 
     /// How far `object`'s lowest collider point is below the tool centre now (m; negative when
@@ -430,7 +542,9 @@ impl Attempt<'_> {
         settle_opening(self.cell, 2.0, self.wall)?;
         hold(self.cell, config.release_wait_s, self.wall)?;
         let up = [bx, by, config.carry_height_m];
-        if let Ok(up) = plan_straight(self.cell, up, &config.lift, self.wall) {
+        if let Ok(up) = plan_straight(self.cell, up, &config.lift, self.wall)
+            && self.clear_or_leave_out(&up)
+        {
             follow(self.cell, &up, false, self.wall)?;
         }
         let cell = &mut *self.cell;

@@ -43,7 +43,7 @@ pub use config::{AttemptConfig, AttemptError};
 pub use execute::{
     CARRY_INSET_M, Execution, Measurements, REST_DRIFT_M, REST_TURN_RAD, REST_WINDOW_S, execute,
 };
-pub use motion::{Cell, park};
+pub use motion::{Cell, DETOUR_STEP_M, park};
 pub use plan::{GraspPlan, plan_grasp, plan_grasp_for};
 pub use verdict::{FailureReason, width_between_pads_m};
 pub(crate) use verdict::{grasp_verdict, pinched_objects, touches_for_real, touching_objects};

@@ -4,6 +4,7 @@
 
 use nalgebra::{Isometry3, Translation3, Vector3};
 
+use crate::physics::object::ObjectHandle;
 use crate::physics::world::World;
 use crate::robot::arm::Joints;
 use crate::robot::ik::{IkConfig, IkSolver, IkTarget, TopDownGrasp, top_down_rotation};
@@ -26,14 +27,16 @@ pub struct Cell {
     /// The joints of the ready pose, where [`park`] brings the arm back to (home for
     /// [`Cell::new`]).
     pub ready_rad: Joints,
-    /// What the arm's links touched that they should not (the scenery, each other) in the
-    /// moves since this was last emptied, each contact once ([`Robot::arm_contacts_at`] every
-    /// [`ARM_CHECK_STEPS`] steps of a move); an attempt takes them into its record.
+    /// What the arm touched that it should not (the scenery; a link another link) in the moves
+    /// made whatever they touch — the way back to the ready pose when no clear way was found —
+    /// since this was last emptied, each contact once; an attempt takes them into its record.
+    /// Every other move is checked before it is made and not made when it would touch.
     pub arm_contacts: Vec<ArmContact>,
 }
 
-/// Steps between two checks of the arm's links against the scenery and each other while it
-/// moves (default 4: every 17 ms at 240 Hz, about 2 mm of tool travel at the carry's speed).
+/// Steps of a planned move between two checks of the arm against the scenery and itself
+/// ([`contacts_along`]; 4: every 17 ms at 240 Hz, about 2 mm of tool travel at the carry's
+/// speed).
 pub const ARM_CHECK_STEPS: u32 = 4;
 
 impl Cell {
@@ -94,12 +97,16 @@ impl Cell {
     }
 }
 
-/// Steps a trajectory, guarded or not, recording arm-object contacts.
+/// What following a trajectory found: whether a guarded move stopped on a contact, and whether
+/// an arm link pushed an object.
 pub(super) struct Motion {
     pub(super) stopped_by_contact: bool,
     pub(super) arm_collision: bool,
 }
 
+/// Steps a trajectory, guarded or not, recording arm-object contacts. The arm is not checked
+/// against the scenery here: every move is checked before it is made ([`route`],
+/// [`contacts_along`]).
 pub(super) fn follow(
     cell: &mut Cell,
     trajectory: &JointTrajectory,
@@ -115,14 +122,6 @@ pub(super) fn follow(
             let t = (f64::from(k) * dt).min(duration);
             cell.robot.step_to(&mut cell.world, trajectory, t)?;
             arm_collision |= !cell.robot.arm_touches(&cell.world).is_empty();
-            if k % ARM_CHECK_STEPS == 0 || k == steps {
-                let q = cell.robot.joints_rad();
-                for contact in cell.robot.arm_contacts_at(&cell.world, &q) {
-                    if !cell.arm_contacts.contains(&contact) {
-                        cell.arm_contacts.push(contact);
-                    }
-                }
-            }
             if guarded && touches_for_real(&cell.world, cell.robot.gripper()) {
                 return Ok(Motion {
                     stopped_by_contact: true,
@@ -134,6 +133,205 @@ pub(super) fn follow(
             stopped_by_contact: false,
             arm_collision,
         })
+    })
+}
+
+/// What a move's check covers ([`contacts_along`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Check {
+    /// The arm's links, against the scenery and each other ([`Robot::arm_contacts_at`]): the
+    /// moves straight up and down, which bring the fingers near the table or a basket floor by
+    /// design.
+    Links,
+    /// The links, and the gripper with the object it holds (if any) against the scenery
+    /// ([`Robot::carried_contacts_at`]): the moves between two poses in the air.
+    Carried(Option<ObjectHandle>),
+}
+
+/// What the arm would touch along `trajectory` ([`Check`]), at the joints [`follow`] would step
+/// through, every [`ARM_CHECK_STEPS`] steps and the last, each contact once; only the first one
+/// found when `first_only` (enough to turn a move down). The scenery is fixed, so this is what
+/// following the move would meet.
+pub(super) fn contacts_along(
+    cell: &Cell,
+    trajectory: &JointTrajectory,
+    check: Check,
+    first_only: bool,
+) -> Vec<ArmContact> {
+    let dt = f64::from(cell.world.dt_s());
+    let duration = trajectory.duration_s();
+    let steps = (duration / dt).ceil().max(0.0) as u32;
+    let mut out = Vec::new();
+    for k in (1..=steps).filter(|k| k % ARM_CHECK_STEPS == 0 || *k == steps) {
+        let q = trajectory.sample((f64::from(k) * dt).min(duration));
+        let mut found = cell.robot.arm_contacts_at(&cell.world, &q);
+        if let Check::Carried(held) = check {
+            found.extend(cell.robot.carried_contacts_at(&cell.world, &q, held));
+        }
+        for contact in found {
+            if !out.contains(&contact) {
+                out.push(contact);
+                if first_only {
+                    return out;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The first contact along `trajectory` ([`contacts_along`]), timed as planning.
+pub(super) fn first_contact(
+    cell: &Cell,
+    trajectory: &JointTrajectory,
+    check: Check,
+    wall: &mut WallTimes,
+) -> Option<ArmContact> {
+    wall.time(Work::Planning, || {
+        contacts_along(cell, trajectory, check, true)
+            .into_iter()
+            .next()
+    })
+}
+
+/// Follows `trajectory` whatever its links touch, recording each contact in
+/// [`Cell::arm_contacts`] — for the moves that cannot be turned down (the way back to the
+/// ready pose when no detour is clear).
+pub(super) fn follow_recording(
+    cell: &mut Cell,
+    trajectory: &JointTrajectory,
+    check: Check,
+    wall: &mut WallTimes,
+) -> Result<Motion, AttemptError> {
+    let contacts = wall.time(Work::Planning, || {
+        contacts_along(cell, trajectory, check, false)
+    });
+    for contact in contacts {
+        if !cell.arm_contacts.contains(&contact) {
+            cell.arm_contacts.push(contact);
+        }
+    }
+    follow(cell, trajectory, false, wall)
+}
+
+/// How far apart the via heights of a lifted detour are ([`route`]; m).
+pub const DETOUR_STEP_M: f64 = 0.05;
+/// Via heights a detour tries above the higher end of the move ([`route`]).
+const DETOUR_HEIGHTS: usize = 6;
+
+/// A move the arm's links make without touching the scenery or each other: one trajectory, or
+/// the legs of a detour, in order.
+#[derive(Debug)]
+pub(super) struct Route {
+    pub(super) legs: Vec<JointTrajectory>,
+    /// What the direct move would have touched first, when it was replaced by a detour.
+    pub(super) avoided: Option<ArmContact>,
+}
+
+/// `direct` when the arm's links touch nothing along it; else a **lifted detour** to the tool
+/// pose `direct` ends at: straight up to a via height, across at it (a joint move at the arm's
+/// speeds times `speed_scale`, as the carry is, or when that is not clear a straight line), then
+/// straight down — the lowest via height, from the higher of the two ends up in
+/// [`DETOUR_STEP_M`] steps ([`DETOUR_HEIGHTS`] of them), whose legs are all clear. The straight
+/// legs move as `params` says. `Err` with the direct move's first contact when none is: the
+/// move is turned down.
+pub(super) fn route(
+    cell: &mut Cell,
+    direct: JointTrajectory,
+    check: Check,
+    params: &LinearMove,
+    speed_scale: f64,
+    wall: &mut WallTimes,
+) -> Result<Route, ArmContact> {
+    let Some(contact) = first_contact(cell, &direct, check, wall) else {
+        return Ok(Route {
+            legs: vec![direct],
+            avoided: None,
+        });
+    };
+    let model = cell.ik.model().clone();
+    let (Ok(from), Ok(to)) = (
+        model.world_from_tool(&direct.start()),
+        model.world_from_tool(&direct.end()),
+    ) else {
+        return Err(contact);
+    };
+    let mut arm = cell.robot.arm().clone();
+    arm.max_speed_rad_s = arm.max_speed_rad_s.map(|v| v * speed_scale);
+    arm.max_accel_rad_s2 = arm.max_accel_rad_s2.map(|a| a * speed_scale * speed_scale);
+    let high = from.translation.vector.z.max(to.translation.vector.z);
+    let same = |q: &Joints, goal: &Isometry3<f64>| {
+        model.world_from_tool(q).is_ok_and(|p| {
+            (p.translation.vector - goal.translation.vector).norm() < 1e-4
+                && p.rotation.angle_to(&goal.rotation) < 1e-4
+        })
+    };
+    for h in 0..DETOUR_HEIGHTS {
+        let z = high + DETOUR_STEP_M * h as f64;
+        let mut up = from;
+        up.translation.vector.z = z;
+        let mut over = to;
+        over.translation.vector.z = z;
+        let mut q = direct.start();
+        let mut legs = Vec::new();
+        let mut clear = true;
+        for (goal, across) in [(up, false), (over, true), (to, false)] {
+            if same(&q, &goal) {
+                continue;
+            }
+            let q0 = q;
+            let leg = wall.time(Work::Planning, || {
+                let joint_move = across
+                    .then(|| {
+                        let q1 = cell.ik.solve(&IkTarget::Pose(goal), &q0).ok()?.joints_rad;
+                        JointTrajectory::point_to_point(&arm, &q0, &q1).ok()
+                    })
+                    .flatten();
+                joint_move.or_else(|| plan_linear_move(&mut cell.ik, &q0, &goal, params).ok())
+            });
+            let leg = match leg {
+                Some(t) if first_contact(cell, &t, check, wall).is_none() => Some(t),
+                Some(_) if across => wall
+                    .time(Work::Planning, || {
+                        plan_linear_move(&mut cell.ik, &q0, &goal, params).ok()
+                    })
+                    .filter(|t| first_contact(cell, t, check, wall).is_none()),
+                _ => None,
+            };
+            match leg {
+                Some(leg) => {
+                    q = leg.end();
+                    legs.push(leg);
+                }
+                None => {
+                    clear = false;
+                    break;
+                }
+            }
+        }
+        if clear {
+            return Ok(Route {
+                legs,
+                avoided: Some(contact),
+            });
+        }
+    }
+    Err(contact)
+}
+
+/// Follows every leg of `route` (none of them guarded).
+pub(super) fn follow_route(
+    cell: &mut Cell,
+    route: &Route,
+    wall: &mut WallTimes,
+) -> Result<Motion, AttemptError> {
+    let mut arm_collision = false;
+    for leg in &route.legs {
+        arm_collision |= follow(cell, leg, false, wall)?.arm_collision;
+    }
+    Ok(Motion {
+        stopped_by_contact: false,
+        arm_collision,
     })
 }
 
@@ -269,8 +467,10 @@ pub(super) fn plan_straight_top_down(
 /// Backs the gripper off (opens it fully, rises straight up to the pre-grasp height `up_to_z_m`
 /// when it is lower) and returns to the ready pose — in one joint move to the ready joints when
 /// the tool along it stays no lower than its two ends (`joint_move_not_below_ends`; from the
-/// baskets it does), else in a straight line — where frames are taken from and the next
-/// approach starts.
+/// baskets it does) and the links clear everything along it or a detour ([`route`]), else in a
+/// straight line — where frames are taken from and the next approach starts. Moves whose links
+/// touch something and have no clear detour are made anyway, their contacts recorded in
+/// [`Cell::arm_contacts`].
 pub fn park(
     cell: &mut Cell,
     up_to_z_m: f64,
@@ -284,14 +484,18 @@ pub fn park(
     if tool.translation.vector.z < up_to_z_m - 1e-3
         && let Ok(up) = plan_straight(cell, [x, y, up_to_z_m], &config.lift, wall)
     {
-        follow(cell, &up, false, wall)?;
+        follow_recording(cell, &up, Check::Links, wall)?;
     }
     settle_opening(cell, 1.0, wall)?;
     // Straight to the ready joints when that joint move keeps the tool no lower than where it
     // is and where it goes, as the line would: from the reference basket it replaces the
     // line's joint-limited 4.3 s and the wrist's 1.7-second turn back with one 1.5–2 s move.
-    if let Some(go) = joint_move_not_below_ends(cell, &{ cell.ready_rad }, wall) {
-        follow(cell, &go, false, wall)?;
+    // The way back cannot be turned down: when neither it, a detour nor the straight line is
+    // clear, the arm goes anyway and its contacts are recorded.
+    if let Some(go) = joint_move_not_below_ends(cell, &{ cell.ready_rad }, wall)
+        && let Ok(way) = route(cell, go, Check::Carried(None), &config.transit, 1.0, wall)
+    {
+        follow_route(cell, &way, wall)?;
         return Ok(());
     }
     let yaw = jaw_yaw_rad(&cell.robot.world_from_tool());
@@ -300,7 +504,11 @@ pub fn park(
     if (at - Vector3::from(ready)).norm() > 1e-3
         && let Ok(back) = plan_straight_top_down(cell, ready, yaw, &config.transit, wall)
     {
-        follow(cell, &back, false, wall)?;
+        let check = Check::Carried(None);
+        match route(cell, back.clone(), check, &config.transit, 1.0, wall) {
+            Ok(way) => follow_route(cell, &way, wall)?,
+            Err(_) => follow_recording(cell, &back, check, wall)?,
+        };
     }
     // Then the ready joints exactly — at the ready point this only turns the wrist back — so
     // turns do not add up over the attempts of a round until the wrist reaches its limit.
@@ -312,7 +520,7 @@ pub fn park(
             JointTrajectory::point_to_point(&arm, &q0, &q_ready)
         });
         if let Ok(go) = go {
-            follow(cell, &go, false, wall)?;
+            follow_recording(cell, &go, Check::Links, wall)?;
         }
     }
     Ok(())

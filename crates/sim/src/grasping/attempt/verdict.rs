@@ -28,6 +28,11 @@ pub enum FailureReason {
     Unreachable,
     /// The arm or the fingers hit something on the way down and the grasp then failed.
     CollisionOnApproach,
+    /// A move the attempt needed would have brought an arm link into the scenery (the table, a
+    /// basket, the pedestal, the floor) or into another link, and no lifted detour was clear:
+    /// the move was turned down before it was made
+    /// (`Measurements::avoided_contacts` says what it would have touched).
+    ArmCollision,
     /// The fingers closed without pinching the object.
     Missed,
     /// The object was pinched but did not rise with the gripper or fell during the hold.
@@ -49,11 +54,12 @@ pub enum FailureReason {
 
 impl FailureReason {
     /// Every reason, in a fixed order.
-    pub const ALL: [FailureReason; 10] = [
+    pub const ALL: [FailureReason; 11] = [
         Self::NoGraspFound,
         Self::WiderThanGripper,
         Self::Unreachable,
         Self::CollisionOnApproach,
+        Self::ArmCollision,
         Self::Missed,
         Self::SlippedDuringLift,
         Self::SlippedDuringCarry,
@@ -69,6 +75,7 @@ impl FailureReason {
             Self::WiderThanGripper => "wider_than_gripper",
             Self::Unreachable => "unreachable",
             Self::CollisionOnApproach => "collision_on_approach",
+            Self::ArmCollision => "arm_collision",
             Self::Missed => "missed",
             Self::SlippedDuringLift => "slipped_during_lift",
             Self::SlippedDuringCarry => "slipped_during_carry",

@@ -32,7 +32,8 @@
 //! 0 where nothing was hit | | `/camera/{overview,closeup,basket}/calibration` |
 //! `foxglove.CameraCalibration` | pinhole (`plumb_bob`, no distortion) | | `/events` |
 //! `foxglove.Log` | round start and end, attempt start and end with the success flags and the
-//! failure reason; recognitions and the teacher's lessons (pick-and-place) | | `/labels` |
+//! failure reason, each arm contact avoided (info: `arm contact avoided: link 5 touches
+//! basket 0`) or made (warning: `arm contact: …`); recognitions and the teacher's lessons (pick-and-place) | | `/labels` |
 //! `foxglove.SceneUpdate` | pick-and-place: entity `label/<object frame>`, `frame_locked` in the
 //! object's frame, a billboard text above it (true instance, the robot's first guess and
 //! confidence, the teacher's part), green when the robot knew it, amber when it did not know, red
@@ -490,6 +491,17 @@ impl Recorder {
             LogLevel::Warning
         };
         rec.log_at(t, level, &format!("attempt end: {}", outcome_text(exec)));
+        let m = &exec.measured;
+        for contact in &m.avoided_contacts {
+            rec.log_at(
+                t,
+                LogLevel::Info,
+                &format!("arm contact avoided: {contact}"),
+            );
+        }
+        for contact in &m.arm_contacts {
+            rec.log_at(t, LogLevel::Warning, &format!("arm contact: {contact}"));
+        }
         let row = rec.pending.get_or_insert_with(StoryRow::default);
         for (camera, shot) in after {
             row.panels
