@@ -14,8 +14,8 @@ use crate::timing::{WallTimes, Work};
 
 use super::config::{AttemptConfig, AttemptError};
 use super::motion::{
-    Cell, Check, Route, first_contact, follow, follow_route, hold, plan_joint_move, plan_straight,
-    plan_straight_top_down, route, settle_opening,
+    Cell, Check, Route, first_contact, follow, follow_route, hold, jaw_yaw_rad, plan_joint_move,
+    plan_straight, plan_straight_top_down, route, settle_opening,
 };
 use super::plan::GraspPlan;
 use super::verdict::{
@@ -430,7 +430,8 @@ impl Attempt<'_> {
             }));
         };
         let [bx, by, floor_z] = basket.floor_center_m.map(f64::from);
-        let yaw = self.plan.grasp.yaw_rad;
+        // The jaws' yaw as they are now (the approach may have taken the grasp's yaw + π).
+        let yaw = jaw_yaw_rad(&self.cell.robot.world_from_tool());
         let speed = config.carry_speed_scale;
         // How far the object hangs below the tool, and how high the tool must be for it to
         // clear the basket's walls and the table.

@@ -363,7 +363,12 @@ pub(super) fn settle_opening(
     })
 }
 
-/// A joint move to a top-down tool pose, or `None` when IK or the trajectory fails.
+/// A joint move to a top-down tool pose with the jaws at world yaw `yaw_rad` — exactly that yaw,
+/// so that an object held is not spun about the vertical on the way (the jaws are symmetric, and
+/// the IK would otherwise take `yaw_rad + π` whenever that turns the wrist less: carrying from
+/// the drop region to the basket, the base's turn of about 1.6 rad then came with a half-turn of
+/// the object at up to 4 rad/s, which threw thin tools out of the grip); `yaw_rad + π` only when
+/// the arm cannot keep the yaw. `None` when IK or the trajectory fails.
 pub(super) fn plan_joint_move(
     cell: &mut Cell,
     position_m: [f64; 3],
@@ -373,8 +378,20 @@ pub(super) fn plan_joint_move(
 ) -> Option<JointTrajectory> {
     let q0 = cell.robot.joints_rad();
     wall.time(Work::Planning, || {
-        let target = IkTarget::TopDown(TopDownGrasp::new(position_m, yaw_rad));
-        let q = cell.ik.solve(&target, &q0).ok()?.joints_rad;
+        let kept = TopDownGrasp {
+            jaw_symmetric: false,
+            ..TopDownGrasp::new(position_m, yaw_rad)
+        };
+        let q = match cell.ik.solve(&IkTarget::TopDown(kept), &q0) {
+            Ok(s) => s.joints_rad,
+            Err(_) => {
+                let either = TopDownGrasp::new(position_m, yaw_rad);
+                cell.ik
+                    .solve(&IkTarget::TopDown(either), &q0)
+                    .ok()?
+                    .joints_rad
+            }
+        };
         if speed_scale == 1.0 {
             return JointTrajectory::point_to_point(cell.robot.arm(), &q0, &q).ok();
         }
@@ -435,7 +452,7 @@ pub(super) fn plan_straight(
 
 /// The jaw yaw of a top-down tool pose: the direction of the tool's x axis in the world's XY
 /// plane (rad).
-fn jaw_yaw_rad(world_from_tool: &Isometry3<f64>) -> f64 {
+pub(super) fn jaw_yaw_rad(world_from_tool: &Isometry3<f64>) -> f64 {
     let x = world_from_tool.rotation * Vector3::x();
     x.y.atan2(x.x)
 }
