@@ -72,8 +72,10 @@ def rows_in_eval_order(table: dict[str, np.ndarray], collections: list[int]) -> 
     return rows[np.lexsort((table["frame"][rows], table["sequence"][rows]))]
 
 
-def cli_eval(cli: Path, model: Path, dataset: Path, out: Path, cache: Path) -> dict:
-    run(cli, "eval", "--model", model, "--dataset", dataset, "--split", "test", "--out", out,
+def cli_eval(
+    cli: Path, model: Path, dataset: Path, out: Path, cache: Path, split: str = "test"
+) -> dict:
+    run(cli, "eval", "--model", model, "--dataset", dataset, "--split", split, "--out", out,
         "--progress", "none", cache=cache)  # fmt: skip
     result = json.loads((out / "eval.json").read_text())
     with open(out / "confusion.csv") as f:
@@ -257,7 +259,8 @@ def test_pick_place_model_loads_in_python(cli, tmp_path):
 @pytest.mark.parametrize("learner", ["slda", "ncm"])
 def test_baselines_through_python_equal_the_cli_metrics(cli, small_dataset, tmp_path, learner):
     """A baseline (``--learner``) through ``run_scenario`` gives the CLI's metrics.json; its
-    model is refused by ``GDM.load`` and ``lgdm eval``, naming the learner, nothing written."""
+    model is refused by ``GDM.load``, naming the learner, and scored by ``lgdm eval`` as the
+    trial scored it (and ``--no-context``, the GDM's, is refused with nothing written)."""
     ds = small_dataset
     out = tmp_path / "run"
     run(cli, "train", "--scenario", "ni", "--learner", learner, "--dataset", ds.path,
@@ -273,15 +276,28 @@ def test_baselines_through_python_equal_the_cli_metrics(cli, small_dataset, tmp_
     model = out / "model-trial0.lgdm"
     with pytest.raises(lgdm.CheckpointError, match=f"a model of the {learner} learner"):
         lgdm.GDM.load(model)
+    scored = cli_eval(cli, model, ds.path, tmp_path / "eval", tmp_path / "cache", split="all")
+    assert scored["learner"] == learner and scored["context"] is False
+    # Every collection: the trained instances' training collections (NI's last step scored all
+    # of them), their test collections, and the held-out instances' collections.
+    trial = from_cli["trials"][0]
+    parts = [trial["steps"][-1]["train"], trial["test"], trial["new_instance"]]
+    assert scored["n"] == sum(p["n"] for p in parts)
+    for key in ["instance_accuracy", "category_accuracy_em", "category_accuracy_sm"]:
+        hits = sum(round(p[key] * p["n"]) for p in parts)
+        assert round(scored[key] * scored["n"]) == hits, key
+    assert scored["confusion"].sum() == scored["n"]
+
     env = {**os.environ, "LGDM_CACHE_DIR": str(tmp_path / "cache")}
     done = subprocess.run(
-        [str(cli), "eval", "--model", str(model), "--dataset", str(ds.path), "--out",
-         str(tmp_path / "eval"), "--progress", "none"],
+        [str(cli), "eval", "--model", str(model), "--dataset", str(ds.path), "--no-context",
+         "--out", str(tmp_path / "eval-nc"), "--progress", "none"],
         capture_output=True, text=True, env=env, check=False,
     )  # fmt: skip
     assert done.returncode != 0
-    assert f"a model of the {learner} learner" in done.stderr
-    assert not (tmp_path / "eval").exists()
+    assert "--no-context applies to a GDM model only" in done.stderr, done.stderr
+    assert learner in done.stderr
+    assert not (tmp_path / "eval-nc").exists()
 
 
 def test_cli_refuses_an_unknown_learner_and_replay_for_a_baseline(cli, tmp_path):

@@ -1,10 +1,12 @@
-//! `lgdm eval`: score a saved model on a dataset's collections: instance and category accuracy,
-//! a category confusion matrix (CSV + PNG), model size and inference time per sample.
+//! `lgdm eval`: score a saved model of any learner (the GDM, or a `--learner slda|ncm` baseline)
+//! on a dataset's collections: instance and category accuracy, a category confusion matrix (CSV +
+//! PNG), model size and inference time per sample.
 
 use anyhow::{Context, Result, bail};
 use clap::Args as ClapArgs;
+use lgdm_gdm::PredictOptions;
 use lgdm_gdm::experiment::evaluate;
-use lgdm_gdm::{Gdm, PredictOptions};
+use lgdm_gdm::learner::{Learner, Model};
 use lgdm_pointcloud::dataset::Split;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -28,7 +30,7 @@ pub enum EvalSplit {
 /// Arguments of `lgdm eval`.
 #[derive(Debug, ClapArgs)]
 pub struct Args {
-    /// A model checkpoint written by `lgdm train` (`model-trial0.lgdm`).
+    /// A model file written by `lgdm train` (`model-trial0.lgdm`), of any learner.
     #[arg(long)]
     pub model: PathBuf,
     /// Dataset directory (default: the embedded small dataset).
@@ -121,12 +123,20 @@ fn check_labels(
 pub fn run(args: Args) -> Result<()> {
     let reporter = Reporter::new(args.progress);
     let source = data::FeatureSource::resolve(args.encoder, args.ae_checkpoint.as_deref())?;
-    let gdm = Gdm::load(&args.model)
+    let model = Model::load(&args.model)
         .with_context(|| format!("loading the model {}", args.model.display()))?;
-    if source.dim() != gdm.dim() {
+    if args.no_context && !model.kind().is_gdm() {
+        bail!(
+            "--no-context applies to a GDM model only: {} is a model of the {} learner, which has \
+             no temporal context",
+            args.model.display(),
+            model.kind()
+        );
+    }
+    if source.dim() != model.dim() {
         bail!(
             "the model expects {}-d features but the {} encoder gives {}-d: was it trained with another encoder?",
-            gdm.dim(),
+            model.dim(),
             args.encoder.name(),
             source.dim()
         );
@@ -166,25 +176,27 @@ pub fn run(args: Args) -> Result<()> {
     };
     let view = data::table(&table, &[], &[], &manifest.categories, &[]);
     let e = evaluate(
-        &gdm,
+        &model,
         &view,
         &wanted,
         PredictOptions {
             no_context: args.no_context,
         },
     )?;
-    let size_mb = gdm.size_bytes() as f64 / 1e6;
+    let size_mb = model.size_bytes() as f64 / 1e6;
+    let (episodic_nodes, semantic_nodes) = model.nodes();
     let result = serde_json::json!({
         "model": args.model.display().to_string(),
         "dataset": ds.dir().display().to_string(),
         "split": format!("{:?}", args.split).to_lowercase(),
-        "context": !args.no_context,
+        "learner": model.kind().name(),
+        "context": model.kind().is_gdm() && !args.no_context,
         "n": e.n,
         "instance_accuracy": e.instance_accuracy,
         "category_accuracy_em": e.category_accuracy_em,
         "category_accuracy_sm": e.category_accuracy_sm,
-        "episodic_nodes": gdm.episodic().len(),
-        "semantic_nodes": gdm.semantic().len(),
+        "episodic_nodes": episodic_nodes,
+        "semantic_nodes": semantic_nodes,
         "model_size_mb": size_mb,
         "inference_ms_per_sample": e.ms_per_sample,
     });
@@ -221,12 +233,17 @@ pub fn run(args: Args) -> Result<()> {
     )?;
 
     outln!(
-        "model {} on {} ({} samples, {:?} collections, context {})",
+        "model {} ({}) on {} ({} samples, {:?} collections, context {})",
         args.model.display(),
+        model.kind(),
         ds.dir().display(),
         e.n,
         args.split,
-        if args.no_context { "off" } else { "on" }
+        if model.kind().is_gdm() && !args.no_context {
+            "on"
+        } else {
+            "off"
+        }
     )?;
     outln!(
         "instance accuracy (G-EM)   {:6.2} %",
@@ -241,9 +258,12 @@ pub fn run(args: Args) -> Result<()> {
         100.0 * e.category_accuracy_sm
     )?;
     outln!(
-        "nodes G-EM / G-SM          {} / {}",
-        gdm.episodic().len(),
-        gdm.semantic().len()
+        "{}{episodic_nodes} / {semantic_nodes}",
+        if model.kind().is_gdm() {
+            "nodes G-EM / G-SM          "
+        } else {
+            "class means inst. / cat.   "
+        }
     )?;
     outln!("model size                 {size_mb:.3} MB")?;
     outln!(

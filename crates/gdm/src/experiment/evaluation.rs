@@ -1,11 +1,13 @@
-//! Scoring a trained model on some collections of a table, as `lgdm eval` reports it: accuracies
-//! of both memories, a category confusion matrix and the prediction time per sample.
+//! Scoring a trained model of any learner on some collections of a table, as `lgdm eval` reports
+//! it: accuracies of both memories (a baseline's instance and category heads), a category
+//! confusion matrix and the prediction time per sample.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
 use super::{ExperimentError, Table};
-use crate::{Gdm, PredictOptions, Sample};
+use crate::learner::Learner;
+use crate::{PredictOptions, Sample};
 
 /// What [`evaluate`] measured.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,18 +45,19 @@ pub fn rows_in_sequence_order(table: &Table<'_>, collections: &[u32]) -> Vec<usi
     rows
 }
 
-/// Scores `gdm` on the rows of `collections` (see [`rows_in_sequence_order`]).
+/// Scores `model` (the GDM, or a baseline through the same seam) on the rows of `collections`
+/// (see [`rows_in_sequence_order`]).
 pub fn evaluate(
-    gdm: &Gdm,
+    model: &dyn Learner,
     table: &Table<'_>,
     collections: &[u32],
     opts: PredictOptions,
 ) -> Result<Evaluation, ExperimentError> {
     table.check()?;
-    if table.dim != gdm.dim() {
+    if table.dim != model.dim() {
         return Err(ExperimentError::Table(format!(
             "the model expects {}-d features, the table has {}-d",
-            gdm.dim(),
+            model.dim(),
             table.dim
         )));
     }
@@ -74,7 +77,7 @@ pub fn evaluate(
         })
         .collect();
     let t0 = Instant::now();
-    let predictions = gdm
+    let predictions = model
         .predict(&samples, opts)
         .map_err(ExperimentError::gdm("predicting"))?;
     let ms_per_sample = t0.elapsed().as_secs_f64() * 1e3 / samples.len() as f64;
