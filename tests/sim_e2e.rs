@@ -403,7 +403,16 @@ fn bad_input_is_a_clear_error_and_writes_nothing() {
     assert_fails(data(&["--scenes", "0"]), &["--scenes 0"]);
     assert_fails(data(&["--scenes", "5000"]), &["--scenes 5000", "at most"]);
     assert_fails(
-        data(&["--scenes", "1", "--analytic", "0", "--random", "0"]),
+        data(&[
+            "--scenes",
+            "1",
+            "--analytic",
+            "0",
+            "--random",
+            "0",
+            "--rim",
+            "0",
+        ]),
         &["--analytic 0"],
     );
     assert!(!out.exists());

@@ -161,3 +161,50 @@ fn a_set_is_the_same_bytes_for_any_number_of_threads_and_its_labels_are_outcomes
     // Both outcomes occur: the labels separate grasps.
     assert!(held > 0 && held < tried, "{summary:?}");
 }
+
+#[test]
+fn rim_grasps_are_tried_on_open_objects_and_never_on_closed_ones() {
+    // Two open objects and a closed one, as meshes in the gen-dataset layout, one per table.
+    let tmp = tempfile::tempdir().unwrap();
+    let meshes = tmp.path().join("meshes");
+    for (category, name) in [("cup", "glass"), ("mug", "mug"), ("can", "can")] {
+        let dir = meshes.join(category);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mesh = lgdm_pointcloud::objects::procedural_object(name, 0, 1).unwrap();
+        std::fs::write(dir.join(format!("{name}.obj")), mesh.to_obj()).unwrap();
+    }
+    let setup = GraspDataSetup {
+        scenes: 6,
+        seed: 1,
+        objects: Some(ObjectSource::Meshes {
+            dir: meshes,
+            units: lgdm_pointcloud::import::MeshUnits::parse(&["m"]).unwrap(),
+        }),
+        isolated_share: 1.0,
+        analytic: 1,
+        random: 0,
+        rim: 3,
+        ..GraspDataSetup::default()
+    };
+    let job = GraspDataJob::prepare(setup).unwrap();
+    let out = tmp.path().join("set");
+    let summary = job.run(&out, false, 2, |_| {}).unwrap();
+    let index: GraspIndex =
+        serde_json::from_slice(&std::fs::read(out.join("index.json")).unwrap()).unwrap();
+    let mut rim_on = BTreeMap::<String, usize>::new();
+    for image in &index.images {
+        let physics = image.physics.as_ref().unwrap();
+        let rims = physics
+            .positives
+            .iter()
+            .chain(&physics.negatives)
+            .filter(|o| o.source == "rim")
+            .count();
+        *rim_on.entry(image.category_name.clone()).or_default() += rims;
+    }
+    assert!(rim_on.contains_key("can"), "a can was imaged: {rim_on:?}");
+    assert_eq!(rim_on["can"], 0, "{rim_on:?}");
+    assert!(rim_on.get("cup").copied().unwrap_or(0) + rim_on.get("mug").copied().unwrap_or(0) > 0);
+    let tally = summary.by_source["rim"];
+    assert_eq!(tally.tried, rim_on.values().sum::<usize>(), "{summary:?}");
+}

@@ -6,7 +6,8 @@
 //! [`GraspDataSetup::views_per_scene`] of its objects seen close up exactly as the robot sees them
 //! before a grasp (the same camera, crop and collider drawing), varied where the robot's world
 //! varies ([`Randomise`]: the colours of the table and of each object, the close-up's height, depth
-//! noise). On each view the analytic and the random source propose grasps (asked as the robot asks
+//! noise). On each view the analytic, the random and the rim source ([`RimSource`]: astride the
+//! wall of an open object) propose grasps (asked as the robot asks
 //! them, [`crate::grasping::proposals::ranked_grasps`]); each is planned as the robot plans it and
 //! tried by a free gripper ([`crate::grasping::free_grasp`]), the objects put back at rest after
 //! each. Every view becomes one image in the grasp-image layout `gen-dataset` writes and `train_ae`
@@ -44,6 +45,7 @@ use serde::{Deserialize, Serialize};
 use crate::grasping::attempt::plan_grasp_for;
 use crate::grasping::free_grasp::{FreeGrasp, try_grasp};
 use crate::grasping::proposals::ranked_grasps;
+use crate::grasping::rim::RimSource;
 use crate::grasping::source::{AnalyticSource, GraspSource, RandomSource};
 use crate::perception::{ObjectView, Perception, PerceptionError};
 use crate::physics::shapes::LibraryShapes;
@@ -132,6 +134,11 @@ pub struct GraspDataSetup {
     pub analytic: usize,
     /// The random source's grasps tried per view (default 6).
     pub random: usize,
+    /// The rim source's grasps tried per view (default 3; [`RimSource`]: astride the wall of an
+    /// open object; none on a closed object standing alone). Absent from records written before
+    /// it: 0.
+    #[serde(default)]
+    pub rim: usize,
     /// How views vary from the robot's.
     pub randomise: Randomise,
     /// Every constant of the robot's world (gripper, cameras, scenarios, attempt).
@@ -148,6 +155,7 @@ impl Default for GraspDataSetup {
             views_per_scene: 2,
             analytic: 6,
             random: 6,
+            rim: 3,
             randomise: Randomise::default(),
             config: SimConfig::default(),
         }
@@ -257,11 +265,11 @@ impl GraspDataJob {
                 "must be in [0, 1]",
             ));
         }
-        if setup.analytic + setup.random == 0 {
+        if setup.analytic + setup.random + setup.rim == 0 {
             return Err(setting(
                 "analytic",
                 0,
-                "no grasp to try: ask the analytic or the random source for at least one",
+                "no grasp to try: ask the analytic, the random or the rim source for at least one",
             ));
         }
         setup.randomise.validate()?;
@@ -429,6 +437,7 @@ impl GraspDataJob {
             let mut analytic = AnalyticSource::new();
             let mut random =
                 RandomSource::new(derive_seed(setup.seed, TAG_RANDOM, s as u64, v as u64));
+            let mut rim = RimSource::default();
             for (name, source, k) in [
                 (
                     "analytic",
@@ -436,6 +445,7 @@ impl GraspDataJob {
                     setup.analytic,
                 ),
                 ("random", &mut random as &mut dyn GraspSource, setup.random),
+                ("rim", &mut rim as &mut dyn GraspSource, setup.rim),
             ] {
                 if k == 0 {
                     continue;

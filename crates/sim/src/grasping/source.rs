@@ -335,7 +335,7 @@ impl RandomSource {
     }
 }
 
-fn check_crop(crop: &ObjectCrop) -> Result<(), SourceError> {
+pub(crate) fn check_crop(crop: &ObjectCrop) -> Result<(), SourceError> {
     let n = crop.size_px as usize;
     if crop.depth_m.len() != n * n {
         return Err(SourceError::BadCrop(format!(

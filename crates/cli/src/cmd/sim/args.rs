@@ -144,6 +144,11 @@ pub struct GraspDataArgs {
     /// The random source's grasps tried per view.
     #[arg(long, default_value_t = 6)]
     pub random: usize,
+    /// The rim source's grasps tried per view: astride the wall of an open object (a mug, a
+    /// glass, a bowl); none on a closed object standing alone, a few in clutter where a taller
+    /// object's edge stands over a lower neighbour (physics labels them all).
+    #[arg(long, default_value_t = 3)]
+    pub rim: usize,
     /// Share of tables with one object (the rest: packed, pile or scattered).
     #[arg(long, default_value_t = 0.5)]
     pub isolated_share: f64,

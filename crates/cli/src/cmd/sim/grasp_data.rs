@@ -33,6 +33,7 @@ pub fn run(args: GraspDataArgs) -> Result<()> {
         views_per_scene: args.views_per_scene,
         analytic: args.analytic,
         random: args.random,
+        rim: args.rim,
         randomise: if args.no_randomise {
             Randomise::none()
         } else {
