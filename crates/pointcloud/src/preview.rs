@@ -252,31 +252,37 @@ pub fn contact_sheet(objects: &[ObjectModel], title: &str) -> RgbImage {
 }
 
 /// Writes the preview PNGs of a dataset made with `seed` and the grasp parameters `grasp` into
-/// `out_dir`; returns their paths relative to `out_dir`.
+/// `out_dir` — the contact sheet, and the grasp preview when `grasp_images` (the dataset has grasp
+/// images to preview) — and returns their paths relative to `out_dir`.
 pub fn write_previews(
     objects: &[ObjectModel],
     seed: u64,
     grasp: &GraspSpec,
+    grasp_images: bool,
     out_dir: &Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Vec<String>, ImageError> {
     if objects.is_empty() {
         return Ok(Vec::new());
     }
+    let total = 1 + u64::from(grasp_images);
     let title = format!("lgdm dataset: {} objects, seed {}", objects.len(), seed);
     contact_sheet(objects, &title).write_png(&out_dir.join(CONTACT_SHEET))?;
     progress(Progress {
         stage: "previews",
         done: 1,
-        total: 2,
+        total,
     });
+    if !grasp_images {
+        return Ok(vec![CONTACT_SHEET.to_string()]);
+    }
     // The first grasp scene (the same one the Cornell export wrote as pcd0100).
     let scene = grasp_scene(grasp, seed, 0, &objects[0]);
     grasp_preview(&scene, &objects[0].name).write_png(&out_dir.join(GRASP_PREVIEW))?;
     progress(Progress {
         stage: "previews",
         done: 2,
-        total: 2,
+        total,
     });
     Ok(vec![CONTACT_SHEET.to_string(), GRASP_PREVIEW.to_string()])
 }
@@ -320,4 +326,35 @@ pub fn grasp_preview(scene: &GraspScene, name: &str) -> RgbImage {
     );
     out.draw_text(6, 8, &text, [230, 230, 230], 1);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::procedural_library;
+
+    #[test]
+    fn the_grasp_preview_is_written_only_for_a_dataset_with_grasp_images() {
+        let objects = procedural_library(&["mug", "can"], 1, 0).unwrap();
+        let objects = &objects[..];
+        let grasp = GraspSpec::default();
+        for (with, files) in [
+            (false, vec![CONTACT_SHEET]),
+            (true, vec![CONTACT_SHEET, GRASP_PREVIEW]),
+        ] {
+            let dir = tempfile::tempdir().unwrap();
+            let mut last = None;
+            let written = write_previews(objects, 0, &grasp, with, dir.path(), &mut |p| {
+                last = Some(p)
+            })
+            .unwrap();
+            assert_eq!(written, files);
+            assert_eq!(dir.path().join(GRASP_PREVIEW).exists(), with);
+            let last = last.unwrap();
+            assert_eq!(
+                (last.done, last.total),
+                (files.len() as u64, files.len() as u64)
+            );
+        }
+    }
 }

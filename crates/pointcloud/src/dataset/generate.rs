@@ -306,7 +306,14 @@ fn generate_impl(
 
         let grasp = export_grasp_set(spec, &objects, &instances, &categories, out_dir, progress)?;
         let previews = if spec.previews {
-            crate::preview::write_previews(&objects, spec.seed, &spec.grasp, out_dir, progress)?
+            crate::preview::write_previews(
+                &objects,
+                spec.seed,
+                &spec.grasp,
+                spec.grasp_images > 0,
+                out_dir,
+                progress,
+            )?
         } else {
             Vec::new()
         };

@@ -146,7 +146,7 @@ pub struct DatasetSpec {
     /// written before crops existed, which held whole frames).
     #[serde(default)]
     pub grasp_crop: Option<CropSpec>,
-    /// Write `contact_sheet.png` and `grasp_preview.png` (default: true).
+    /// Write `contact_sheet.png` and, with grasp images, `grasp_preview.png` (default: true).
     pub previews: bool,
 }
 
