@@ -336,7 +336,6 @@ mod tests {
     #[test]
     fn the_grasp_preview_is_written_only_for_a_dataset_with_grasp_images() {
         let objects = procedural_library(&["mug", "can"], 1, 0).unwrap();
-        let objects = &objects[..];
         let grasp = GraspSpec::default();
         for (with, files) in [
             (false, vec![CONTACT_SHEET]),
@@ -344,7 +343,7 @@ mod tests {
         ] {
             let dir = tempfile::tempdir().unwrap();
             let mut last = None;
-            let written = write_previews(objects, 0, &grasp, with, dir.path(), &mut |p| {
+            let written = write_previews(&objects, 0, &grasp, with, dir.path(), &mut |p| {
                 last = Some(p)
             })
             .unwrap();

@@ -335,7 +335,7 @@ pub struct PhysicsLabels {
 /// What happened when one rectangle was tried.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GraspOutcome {
-    /// The grasp source that proposed it (`analytic`, `random`).
+    /// The grasp source that proposed it (`analytic`, `random`, `rim`).
     pub source: String,
     /// Its rank among that source's proposals (0 = best).
     pub rank: usize,
