@@ -24,6 +24,7 @@ fn main() {
         category: category.to_string(),
         mesh,
         physics: Default::default(),
+        parts: Vec::new(),
     };
     let scene = grasp_scene(&GraspSpec::default(), 0, image, &object);
     if let Err(e) = grasp_preview(&scene, &object.name).write_png(out.as_ref()) {

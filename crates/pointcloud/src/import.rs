@@ -530,6 +530,7 @@ pub fn load_mesh_library(
                     category,
                     mesh,
                     physics: props.physics(),
+                    parts: Vec::new(),
                 },
                 report,
             })

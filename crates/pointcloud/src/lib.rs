@@ -39,6 +39,7 @@ pub mod math;
 pub mod mesh;
 pub mod npz;
 pub mod objects;
+pub mod parts;
 pub mod preview;
 pub mod progress;
 pub mod projection;

@@ -344,41 +344,10 @@ impl Mesh {
     /// length.
     pub fn tapered_tube(path: &[[f32; 3]], radii: &[f32], sides: usize, color: [u8; 3]) -> Mesh {
         let mut mesh = Mesh::new();
-        if path.len() < 2 || radii.len() != path.len() {
+        let Some(rings) = tube_rings(path, radii, sides) else {
             return mesh;
-        }
-        let sides = sides.max(3);
-        // Tangents and a parallel-transported normal frame.
-        let n = path.len();
-        let tangent = |i: usize| {
-            let a = path[i.saturating_sub(1)];
-            let b = path[(i + 1).min(n - 1)];
-            normalize(sub(b, a))
         };
-        let t0 = tangent(0);
-        let helper = if t0[2].abs() < 0.9 {
-            [0.0, 0.0, 1.0]
-        } else {
-            [1.0, 0.0, 0.0]
-        };
-        let mut u = normalize(cross(t0, helper));
-        let mut rings: Vec<Vec<[f32; 3]>> = Vec::with_capacity(n);
-        for (i, &centre) in path.iter().enumerate() {
-            let t = tangent(i);
-            // Remove the tangential component to transport the frame.
-            u = normalize(sub(u, scale(t, dot(u, t))));
-            let w = cross(t, u);
-            let ring = (0..sides)
-                .map(|j| {
-                    let a = std::f32::consts::TAU * j as f32 / sides as f32;
-                    add(
-                        centre,
-                        add(scale(u, radii[i] * a.cos()), scale(w, radii[i] * a.sin())),
-                    )
-                })
-                .collect();
-            rings.push(ring);
-        }
+        let (n, sides) = (rings.len(), rings[0].len());
         for i in 0..n - 1 {
             for j in 0..sides {
                 let k = (j + 1) % sides;
@@ -402,6 +371,52 @@ impl Mesh {
         }
         mesh
     }
+}
+
+/// The rings of [`Mesh::tapered_tube`]: `sides` points (at least 3) around each point of `path`
+/// in a parallel-transported frame; `None` when `path` has fewer than two points or `radii`
+/// another length. Its convex parts ([`crate::parts::tube_parts`]) are built from the same rings.
+pub(crate) fn tube_rings(
+    path: &[[f32; 3]],
+    radii: &[f32],
+    sides: usize,
+) -> Option<Vec<Vec<[f32; 3]>>> {
+    if path.len() < 2 || radii.len() != path.len() {
+        return None;
+    }
+    let sides = sides.max(3);
+    // Tangents and a parallel-transported normal frame.
+    let n = path.len();
+    let tangent = |i: usize| {
+        let a = path[i.saturating_sub(1)];
+        let b = path[(i + 1).min(n - 1)];
+        normalize(sub(b, a))
+    };
+    let t0 = tangent(0);
+    let helper = if t0[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let mut u = normalize(cross(t0, helper));
+    let mut rings: Vec<Vec<[f32; 3]>> = Vec::with_capacity(n);
+    for (i, &centre) in path.iter().enumerate() {
+        let t = tangent(i);
+        // Remove the tangential component to transport the frame.
+        u = normalize(sub(u, scale(t, dot(u, t))));
+        let w = cross(t, u);
+        let ring = (0..sides)
+            .map(|j| {
+                let a = std::f32::consts::TAU * j as f32 / sides as f32;
+                add(
+                    centre,
+                    add(scale(u, radii[i] * a.cos()), scale(w, radii[i] * a.sin())),
+                )
+            })
+            .collect();
+        rings.push(ring);
+    }
+    Some(rings)
 }
 
 #[cfg(test)]

@@ -47,6 +47,10 @@ pub struct ObjectModel {
     /// Its simulated body's mass and friction where they are given (an imported mesh's
     /// `objects.toml`); else the simulator's material rules apply.
     pub physics: crate::sidecar::ObjectPhysics,
+    /// The mesh's convex parts where its generator knows them ([`crate::parts`]: the procedural
+    /// objects' revolved profiles, tubes and boxes), in the mesh frame; empty for an imported
+    /// mesh. A simulator may build its collider from them instead of decomposing the mesh.
+    pub parts: Vec<crate::parts::Part>,
 }
 
 /// An unknown procedural category name.
@@ -63,12 +67,13 @@ pub fn procedural_library(
     let mut out = Vec::with_capacity(categories.len() * instances_per_category);
     for &category in categories {
         for instance in 0..instances_per_category {
-            let mesh = procedural_object(category, instance, seed)?;
+            let Shape { mesh, parts } = procedural_shape(category, instance, seed)?;
             out.push(ObjectModel {
                 name: format!("{category}_{:02}", instance + 1),
                 category: category.to_string(),
                 mesh,
                 physics: Default::default(),
+                parts,
             });
         }
     }
@@ -81,6 +86,67 @@ pub fn procedural_object(
     instance: usize,
     seed: u64,
 ) -> Result<Mesh, UnknownCategory> {
+    procedural_shape(category, instance, seed).map(|shape| shape.mesh)
+}
+
+/// A generated mesh with its convex parts ([`crate::parts`]).
+#[derive(Debug, Clone, Default)]
+pub struct Shape {
+    /// The mesh.
+    pub mesh: Mesh,
+    /// Its convex parts: their union is the mesh.
+    pub parts: Vec<crate::parts::Part>,
+}
+
+impl Shape {
+    fn lathe(profile: &[[f32; 2]], segments: usize, color: [u8; 3]) -> Shape {
+        Shape {
+            mesh: Mesh::lathe(profile, segments, color),
+            parts: crate::parts::lathe_parts(profile, segments),
+        }
+    }
+
+    fn lathe_colored(profile: &[[f32; 2]], segments: usize, colors: &[[u8; 3]]) -> Shape {
+        Shape {
+            mesh: Mesh::lathe_colored(profile, segments, colors),
+            parts: crate::parts::lathe_parts(profile, segments),
+        }
+    }
+
+    fn cuboid(center: [f32; 3], size: [f32; 3], color: [u8; 3]) -> Shape {
+        Shape {
+            mesh: Mesh::cuboid(center, size, color),
+            parts: vec![crate::parts::cuboid_part(center, size)],
+        }
+    }
+
+    fn append(&mut self, other: Shape) {
+        self.mesh.append(&other.mesh);
+        self.parts.extend(other.parts);
+    }
+
+    fn tube(path: &[[f32; 3]], radius: f32, sides: usize, color: [u8; 3]) -> Shape {
+        let radii = vec![radius; path.len()];
+        Shape {
+            mesh: Mesh::tube(path, radius, sides, color),
+            parts: crate::parts::tube_parts(path, &radii, sides),
+        }
+    }
+
+    fn translate(&mut self, t: [f32; 3]) {
+        self.mesh.translate(t);
+        for v in self.parts.iter_mut().flatten() {
+            *v = [v[0] + t[0], v[1] + t[1], v[2] + t[2]];
+        }
+    }
+}
+
+/// Builds instance `instance` of `category` for `seed`, with its convex parts.
+pub fn procedural_shape(
+    category: &str,
+    instance: usize,
+    seed: u64,
+) -> Result<Shape, UnknownCategory> {
     let index = CATEGORIES
         .iter()
         .position(|&c| c == category)
@@ -92,7 +158,7 @@ pub fn procedural_object(
         instance as u64,
     ));
     let r = &mut rng;
-    let mut mesh = match category {
+    let mut shape = match category {
         "mug" => mug(r, instance),
         "teapot" => teapot(r, instance),
         "bowl" => bowl(r),
@@ -105,8 +171,11 @@ pub fn procedural_object(
         "apple" => apple(r),
         _ => unreachable!("category list and match agree"),
     };
-    rest_on_table(&mut mesh);
-    Ok(mesh)
+    if let Some((lo, hi)) = shape.mesh.bounds() {
+        // As rest_on_table does, for the parts too.
+        shape.translate([-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]]);
+    }
+    Ok(shape)
 }
 
 /// Centres the mesh's bounding box on the z axis and lowers it onto z = 0.
@@ -181,7 +250,7 @@ fn handle_path(x0: f32, z_bot: f32, z_top: f32, reach: f32, squareness: f32) -> 
         .collect()
 }
 
-fn mug(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
+fn mug(r: &mut ChaCha8Rng, instance: usize) -> Shape {
     let radius = u(r, 0.036, 0.048);
     let height = u(r, 0.08, 0.112);
     let top = radius * u(r, 0.94, 1.14);
@@ -196,7 +265,7 @@ fn mug(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         [radius - wall, 0.012],
         [0.0, 0.012],
     ];
-    let mut mesh = Mesh::lathe(&profile, SEGMENTS, color);
+    let mut mesh = Shape::lathe(&profile, SEGMENTS, color);
     let squareness = if instance.is_multiple_of(2) {
         2.0
     } else {
@@ -207,7 +276,7 @@ fn mug(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
     let reach = u(r, 0.022, 0.036);
     let thickness = u(r, 0.004, 0.0065);
     let x0 = (radius + top) / 2.0 - 0.004;
-    mesh.append(&Mesh::tube(
+    mesh.append(Shape::tube(
         &handle_path(x0, z_bot, z_top, reach, squareness),
         thickness,
         10,
@@ -216,7 +285,7 @@ fn mug(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
     mesh
 }
 
-fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
+fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Shape {
     let radius = u(r, 0.055, 0.075);
     let rz = radius * u(r, 0.6, 0.85);
     let zc = rz * 0.85;
@@ -242,7 +311,7 @@ fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
     let body_bands = profile.len() - 1 - 5;
     let mut colors = vec![color; body_bands];
     colors.extend_from_slice(&[lid; 5]);
-    let mut mesh = Mesh::lathe_colored(&profile, SEGMENTS, &colors);
+    let mut mesh = Shape::lathe_colored(&profile, SEGMENTS, &colors);
     // Spout on the -x side.
     let spout_r = u(r, 0.007, 0.012);
     let rise = u(r, 0.6, 1.1);
@@ -253,7 +322,7 @@ fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         [-radius - reach * 0.7, 0.0, zc + 0.55 * rz * rise],
         [-radius - reach, 0.0, zc + 0.85 * rz * rise],
     ];
-    mesh.append(&Mesh::tube(&spout, spout_r, 10, color));
+    mesh.append(Shape::tube(&spout, spout_r, 10, color));
     let squareness = if instance.is_multiple_of(2) { 2.5 } else { 4.0 };
     let handle = handle_path(
         radius * 0.85,
@@ -262,11 +331,11 @@ fn teapot(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         u(r, 0.03, 0.045),
         squareness,
     );
-    mesh.append(&Mesh::tube(&handle, u(r, 0.005, 0.007), 10, color));
+    mesh.append(Shape::tube(&handle, u(r, 0.005, 0.007), 10, color));
     mesh
 }
 
-fn bowl(r: &mut ChaCha8Rng) -> Mesh {
+fn bowl(r: &mut ChaCha8Rng) -> Shape {
     let radius = u(r, 0.06, 0.09);
     let height = u(r, 0.045, 0.075);
     let foot = radius * u(r, 0.4, 0.6);
@@ -290,7 +359,7 @@ fn bowl(r: &mut ChaCha8Rng) -> Mesh {
         profile.push([p[0] - wall, p[1].max(foot_h + wall)]);
     }
     profile.push([0.0, foot_h + wall]);
-    Mesh::lathe(&profile, SEGMENTS, color)
+    Shape::lathe(&profile, SEGMENTS, color)
 }
 
 const PLASTIC: [[u8; 3]; 6] = [
@@ -302,7 +371,7 @@ const PLASTIC: [[u8; 3]; 6] = [
     [240, 240, 240],
 ];
 
-fn bottle(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
+fn bottle(r: &mut ChaCha8Rng, instance: usize) -> Shape {
     let radius = u(r, 0.028, 0.042);
     let height = u(r, 0.2, 0.29);
     let shoulder = height * u(r, 0.55, 0.7);
@@ -338,10 +407,10 @@ fn bottle(r: &mut ChaCha8Rng, instance: usize) -> Mesh {
         [0.0, height],
     ]);
     colors.extend_from_slice(&[body, cap, cap, cap]);
-    Mesh::lathe_colored(&profile, SEGMENTS, &colors)
+    Shape::lathe_colored(&profile, SEGMENTS, &colors)
 }
 
-fn vase(r: &mut ChaCha8Rng) -> Mesh {
+fn vase(r: &mut ChaCha8Rng) -> Shape {
     let height = u(r, 0.18, 0.28);
     let base = u(r, 0.03, 0.045);
     let belly = u(r, 0.05, 0.072);
@@ -361,7 +430,7 @@ fn vase(r: &mut ChaCha8Rng) -> Mesh {
         profile.push([(p[0] - wall).max(0.002), p[1].max(0.012)]);
     }
     profile.push([0.0, 0.012]);
-    Mesh::lathe(&profile, SEGMENTS, color)
+    Shape::lathe(&profile, SEGMENTS, color)
 }
 
 const LABELS: [[u8; 3]; 6] = [
@@ -373,7 +442,7 @@ const LABELS: [[u8; 3]; 6] = [
     [20, 20, 20],
 ];
 
-fn can(r: &mut ChaCha8Rng) -> Mesh {
+fn can(r: &mut ChaCha8Rng) -> Shape {
     let radius = u(r, 0.032, 0.04);
     let height = u(r, 0.1, 0.165);
     let metal = tint(r, [190, 192, 198], 10);
@@ -390,10 +459,10 @@ fn can(r: &mut ChaCha8Rng) -> Mesh {
         [0.0, height - 0.004],
     ];
     let colors = [metal, metal, label, metal, metal, metal, metal];
-    Mesh::lathe_colored(&profile, SEGMENTS, &colors)
+    Shape::lathe_colored(&profile, SEGMENTS, &colors)
 }
 
-fn glass(r: &mut ChaCha8Rng) -> Mesh {
+fn glass(r: &mut ChaCha8Rng) -> Shape {
     let base = u(r, 0.026, 0.035);
     let top = base * u(r, 1.08, 1.35);
     let height = u(r, 0.09, 0.15);
@@ -408,7 +477,7 @@ fn glass(r: &mut ChaCha8Rng) -> Mesh {
         [base - wall, bottom],
         [0.0, bottom],
     ];
-    Mesh::lathe(&profile, SEGMENTS, color)
+    Shape::lathe(&profile, SEGMENTS, color)
 }
 
 /// Recolours a cuboid's faces: `[bottom, top, -y, +y, +x, -x]`.
@@ -419,21 +488,21 @@ fn paint_cuboid(mesh: &mut Mesh, faces: [[u8; 3]; 6]) {
     }
 }
 
-fn cereal_box(r: &mut ChaCha8Rng) -> Mesh {
+fn cereal_box(r: &mut ChaCha8Rng) -> Shape {
     let w = u(r, 0.18, 0.28);
     let d = u(r, 0.05, 0.08);
     let h = u(r, 0.25, 0.33);
     let front = pick(r, &LABELS);
     let side = tint(r, front, 40);
     let top = tint(r, [220, 210, 190], 15);
-    let mut mesh = Mesh::cuboid([0.0, 0.0, h / 2.0], [w, d, h], front);
-    paint_cuboid(&mut mesh, [top, top, front, front, side, side]);
+    let mut mesh = Shape::cuboid([0.0, 0.0, h / 2.0], [w, d, h], front);
+    paint_cuboid(&mut mesh.mesh, [top, top, front, front, side, side]);
     // A printed panel on the front (slightly proud of the surface).
     let panel = pick(r, &LABELS);
     let pw = w * u(r, 0.4, 0.7);
     let ph = h * u(r, 0.25, 0.45);
     let pz = h * u(r, 0.35, 0.6);
-    mesh.append(&Mesh::cuboid(
+    mesh.append(Shape::cuboid(
         [0.0, -d / 2.0 - 0.0005, pz],
         [pw, 0.001, ph],
         panel,
@@ -441,7 +510,7 @@ fn cereal_box(r: &mut ChaCha8Rng) -> Mesh {
     mesh
 }
 
-fn book(r: &mut ChaCha8Rng) -> Mesh {
+fn book(r: &mut ChaCha8Rng) -> Shape {
     let w = u(r, 0.14, 0.23);
     let d = u(r, 0.015, 0.05);
     let h = u(r, 0.19, 0.27);
@@ -449,24 +518,24 @@ fn book(r: &mut ChaCha8Rng) -> Mesh {
     let pages = tint(r, [235, 230, 210], 8);
     let c = 0.0025;
     let inset = 0.004;
-    let mut mesh = Mesh::new();
+    let mut mesh = Shape::default();
     // Front and back covers, spine on the -x side, page block inset.
-    mesh.append(&Mesh::cuboid(
+    mesh.append(Shape::cuboid(
         [0.0, -d / 2.0 + c / 2.0, h / 2.0],
         [w, c, h],
         cover,
     ));
-    mesh.append(&Mesh::cuboid(
+    mesh.append(Shape::cuboid(
         [0.0, d / 2.0 - c / 2.0, h / 2.0],
         [w, c, h],
         cover,
     ));
-    mesh.append(&Mesh::cuboid(
+    mesh.append(Shape::cuboid(
         [-w / 2.0 + c / 2.0, 0.0, h / 2.0],
         [c, d, h],
         cover,
     ));
-    mesh.append(&Mesh::cuboid(
+    mesh.append(Shape::cuboid(
         [inset / -2.0, 0.0, h / 2.0],
         [w - inset, d - 2.0 * c, h - 2.0 * inset],
         pages,
@@ -474,7 +543,7 @@ fn book(r: &mut ChaCha8Rng) -> Mesh {
     mesh
 }
 
-fn apple(r: &mut ChaCha8Rng) -> Mesh {
+fn apple(r: &mut ChaCha8Rng) -> Shape {
     let radius = u(r, 0.035, 0.046);
     let height = radius * u(r, 1.6, 2.1);
     let top_heavy = u(r, 0.02, 0.16);
@@ -492,14 +561,14 @@ fn apple(r: &mut ChaCha8Rng) -> Mesh {
         profile.push([rr, height / 2.0 * (1.0 + a.sin())]);
     }
     profile.push([0.0, height - dimple_top]);
-    let mut mesh = Mesh::lathe(&profile, SEGMENTS, skin);
+    let mut mesh = Shape::lathe(&profile, SEGMENTS, skin);
     let lean = u(r, -0.004, 0.004);
     let stem = [
         [0.0, 0.0, height - dimple_top - 0.002],
         [lean, 0.0, height + 0.004],
         [lean * 2.0, 0.0, height + 0.012],
     ];
-    mesh.append(&Mesh::tube(&stem, 0.0018, 6, [90, 60, 30]));
+    mesh.append(Shape::tube(&stem, 0.0018, 6, [90, 60, 30]));
     mesh
 }
 

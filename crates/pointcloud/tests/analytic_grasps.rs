@@ -30,6 +30,7 @@ fn object(category: &str, instance: usize, seed: u64) -> ObjectModel {
         category: category.to_string(),
         mesh: procedural_object(category, instance, seed).unwrap(),
         physics: Default::default(),
+        parts: Vec::new(),
     }
 }
 

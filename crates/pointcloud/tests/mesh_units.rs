@@ -417,6 +417,7 @@ fn red_cube(name: &str, side_m: f32) -> ObjectModel {
         category: "cube".into(),
         mesh,
         physics: Default::default(),
+        parts: Vec::new(),
     }
 }
 

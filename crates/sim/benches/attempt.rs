@@ -172,6 +172,7 @@ fn bench(c: &mut Criterion) {
         category: "mug".into(),
         mesh: procedural_object("mug", 0, 2).unwrap(),
         physics: Default::default(),
+        parts: Vec::new(),
     };
     // The mug with the 2F-85, as this bench has timed it from the start.
     let mut two_f_85 = SimConfig::default();

@@ -36,6 +36,7 @@ fn table() -> World {
             category: category.into(),
             mesh: procedural_object(category, 0, 0).unwrap(),
             physics: Default::default(),
+            parts: Vec::new(),
         };
         shapes
             .spawn(&mut world, k, category, &object, &translation([x, y, top]))

@@ -70,6 +70,7 @@ fn bench(c: &mut Criterion) {
         category: "vase".into(),
         mesh: turned_vase(2048, 489, 5e-5),
         physics: Default::default(),
+        parts: Vec::new(),
     };
     assert_eq!(vase.mesh.triangles.len(), 2_002_944);
     let mut group = c.benchmark_group("dense_mesh_2m_triangles");

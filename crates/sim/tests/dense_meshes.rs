@@ -156,6 +156,7 @@ fn check_colliders(name: &str, mesh: &Mesh) {
         category: "dense".into(),
         mesh: mesh.clone(),
         physics: Default::default(),
+        parts: Vec::new(),
     }];
     lgdm_sim::tasks::scenario::check_library(&config, &library, &[0, 1]).unwrap();
     LibraryShapes::new(ShapeConfig::default(), 1)

@@ -24,6 +24,7 @@
 //!     category: "mug".into(),
 //!     mesh: procedural_object("mug", 0, 0).unwrap(),
 //!     physics: Default::default(),
+//!     parts: Vec::new(),
 //! };
 //! let scene = grasp_scene(&GraspSpec::default(), 0, 0, &object);
 //! let positives: Vec<GraspRectangle> = scene.positives();

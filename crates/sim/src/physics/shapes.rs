@@ -77,6 +77,28 @@ pub struct ShapeConfig {
     pub concavity: f32,
     /// Most parts per object (default 32).
     pub max_parts: u32,
+    /// Where an open object's parts come from (default `vhacd`; written to `sim.toml` only
+    /// when it is not the default, so records of earlier runs read the same).
+    #[serde(skip_serializing_if = "PartSource::is_vhacd")]
+    pub parts: PartSource,
+}
+
+/// Where an open object's convex parts come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PartSource {
+    /// VHACD on the mesh, for every object (default).
+    #[default]
+    Vhacd,
+    /// The generator's exact parts where the library object carries them
+    /// ([`ObjectModel::parts`]: the procedural objects), VHACD for the others.
+    Generator,
+}
+
+impl PartSource {
+    fn is_vhacd(&self) -> bool {
+        *self == PartSource::Vhacd
+    }
 }
 
 impl Default for ShapeConfig {
@@ -86,6 +108,7 @@ impl Default for ShapeConfig {
             resolution: 64,
             concavity: 0.01,
             max_parts: 32,
+            parts: PartSource::Vhacd,
         }
     }
 }
@@ -104,6 +127,35 @@ pub const MAX_DECOMPOSITION_FACES: usize = 10_000;
 /// 0.8 mm for a 10 cm object, half a voxel of VHACD's default 64 across), so the simplified mesh
 /// is within `√3` cells of the mesh.
 pub const DENSE_MESH_CELLS: f32 = 128.0;
+
+/// The convex parts of library object `object`: [`decompose`] of its mesh, or, with
+/// [`PartSource::Generator`] and an open object that carries its generator's parts, those parts
+/// with the same base slab.
+pub fn object_parts(object: &ObjectModel, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
+    let mesh = &object.mesh;
+    if config.parts == PartSource::Vhacd
+        || object.parts.is_empty()
+        || mesh_solid_fraction(mesh).is_some_and(|f| f >= SOLID_FRACTION)
+    {
+        return decompose(mesh, config);
+    }
+    let mut parts = object.parts.clone();
+    add_base_slab(mesh, &mut parts);
+    parts
+}
+
+/// Adds the base slab to `parts` (see the module docs): the parts above it stop at its top.
+fn add_base_slab(mesh: &Mesh, parts: &mut Vec<Vec<[f32; 3]>>) {
+    if let Some(base) = base_slab(mesh, BASE_SLAB_M) {
+        let top = base.iter().map(|v| v[2]).fold(f32::NEG_INFINITY, f32::max);
+        for part in parts.iter_mut() {
+            for v in part.iter_mut() {
+                v[2] = v[2].max(top);
+            }
+        }
+        parts.push(base);
+    }
+}
 
 /// The convex parts of `mesh` (point sets in the mesh frame) by VHACD, with a base slab (see the
 /// module docs) — or, for a mesh that fills at least [`SOLID_FRACTION`] of its hull, one part:
@@ -276,7 +328,7 @@ impl LibraryShapes {
         let config = &self.config;
         let done: Vec<(usize, Vec<Vec<[f32; 3]>>)> = todo
             .par_iter()
-            .map(|&i| (i, decompose(&library[i].mesh, config)))
+            .map(|&i| (i, object_parts(&library[i], config)))
             .collect();
         for (i, parts) in done {
             self.parts[i] = Some(parts);
@@ -343,7 +395,7 @@ impl LibraryShapes {
                     self.parts.resize(index + 1, None);
                 }
                 let parts =
-                    self.parts[index].get_or_insert_with(|| decompose(&object.mesh, &self.config));
+                    self.parts[index].get_or_insert_with(|| object_parts(object, &self.config));
                 world.spawn_object_parts(name, &object.mesh, parts, pose, &material)?
             }
         };
@@ -401,6 +453,41 @@ mod tests {
     use crate::physics::world::World;
     use lgdm_pointcloud::math::translation;
     use lgdm_pointcloud::objects::procedural_object;
+
+    /// With `parts = "generator"` an open procedural object is its generator's exact parts and
+    /// a base slab, a closed one stays one hull, and the default is VHACD's decomposition.
+    #[test]
+    fn generator_parts_replace_vhacd_only_where_asked_and_open() {
+        use lgdm_pointcloud::objects::procedural_library;
+        let library = procedural_library(&["glass", "can"], 1, 0).unwrap();
+        let (glass, can) = (&library[0], &library[1]);
+        let vhacd = super::ShapeConfig::default();
+        let generator = super::ShapeConfig {
+            parts: super::PartSource::Generator,
+            ..vhacd.clone()
+        };
+        assert_eq!(
+            super::object_parts(glass, &vhacd),
+            super::decompose(&glass.mesh, &vhacd)
+        );
+        // The glass: its base revolved whole, 32 wall pieces, the slab.
+        assert_eq!(glass.parts.len(), 33);
+        assert_eq!(super::object_parts(glass, &generator).len(), 34);
+        assert_eq!(super::object_parts(can, &generator).len(), 1);
+        // The parts build a body.
+        let mut world = World::new(WorldConfig::default()).unwrap();
+        let parts = super::object_parts(glass, &generator);
+        let pose = translation([0.0, 0.0, 0.8]);
+        world
+            .spawn_object_parts(
+                "glass",
+                &glass.mesh,
+                &parts,
+                &pose,
+                &world.config().object.clone(),
+            )
+            .unwrap();
+    }
 
     /// Closed meshes fill their hulls and are one part; open ones are decomposed.
     #[test]
