@@ -136,7 +136,7 @@ impl Shape {
     fn translate(&mut self, t: [f32; 3]) {
         self.mesh.translate(t);
         for v in self.parts.iter_mut().flatten() {
-            *v = [v[0] + t[0], v[1] + t[1], v[2] + t[2]];
+            *v = crate::math::add(*v, t);
         }
     }
 }
@@ -171,18 +171,23 @@ pub fn procedural_shape(
         "apple" => apple(r),
         _ => unreachable!("category list and match agree"),
     };
-    if let Some((lo, hi)) = shape.mesh.bounds() {
-        // As rest_on_table does, for the parts too.
-        shape.translate([-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]]);
+    if let Some(t) = table_offset(&shape.mesh) {
+        shape.translate(t);
     }
     Ok(shape)
 }
 
 /// Centres the mesh's bounding box on the z axis and lowers it onto z = 0.
 pub fn rest_on_table(mesh: &mut Mesh) {
-    if let Some((lo, hi)) = mesh.bounds() {
-        mesh.translate([-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]]);
+    if let Some(t) = table_offset(mesh) {
+        mesh.translate(t);
     }
+}
+
+/// The translation [`rest_on_table`] applies to `mesh`.
+fn table_offset(mesh: &Mesh) -> Option<[f32; 3]> {
+    let (lo, hi) = mesh.bounds()?;
+    Some([-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]])
 }
 
 const SEGMENTS: usize = 32;

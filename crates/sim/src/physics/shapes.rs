@@ -140,12 +140,17 @@ pub fn object_parts(object: &ObjectModel, config: &ShapeConfig) -> Vec<Vec<[f32;
         return decompose(mesh, config);
     }
     let mut parts = object.parts.clone();
-    add_base_slab(mesh, &mut parts);
+    add_base_slab(mesh, &mut parts, |base| base);
     parts
 }
 
-/// Adds the base slab to `parts` (see the module docs): the parts above it stop at its top.
-fn add_base_slab(mesh: &Mesh, parts: &mut Vec<Vec<[f32; 3]>>) {
+/// Adds the base slab to `parts` (see the module docs), its points passed through `points`:
+/// only the slab reaches the bottom, the parts above it stop at its top face.
+fn add_base_slab(
+    mesh: &Mesh,
+    parts: &mut Vec<Vec<[f32; 3]>>,
+    points: impl FnOnce(Vec<[f32; 3]>) -> Vec<[f32; 3]>,
+) {
     if let Some(base) = base_slab(mesh, BASE_SLAB_M) {
         let top = base.iter().map(|v| v[2]).fold(f32::NEG_INFINITY, f32::max);
         for part in parts.iter_mut() {
@@ -153,7 +158,7 @@ fn add_base_slab(mesh: &Mesh, parts: &mut Vec<Vec<[f32; 3]>>) {
                 v[2] = v[2].max(top);
             }
         }
-        parts.push(base);
+        parts.push(points(base));
     }
 }
 
@@ -213,20 +218,13 @@ pub fn decompose(mesh: &Mesh, config: &ShapeConfig) -> Vec<Vec<[f32; 3]>> {
         .into_iter()
         .map(|(points, _)| reduce(points))
         .collect();
-    if let Some(base) = base_slab(mesh, BASE_SLAB_M) {
-        // Only the slab reaches the bottom: the parts above it stop at its top face.
-        let top = base.iter().map(|v| v[2]).fold(f32::NEG_INFINITY, f32::max);
-        for part in &mut parts {
-            for v in part.iter_mut() {
-                v[2] = v[2].max(top);
-            }
-        }
-        parts.push(if dense {
+    add_base_slab(mesh, &mut parts, |base| {
+        if dense {
             reduce(base.iter().map(|p| Vector::from_array(*p)).collect())
         } else {
             base
-        });
-    }
+        }
+    });
     parts
 }
 
