@@ -81,6 +81,16 @@ pub struct ShapeConfig {
     /// when it is not the default, so records of earlier runs read the same).
     #[serde(skip_serializing_if = "PartSource::is_vhacd")]
     pub parts: PartSource,
+    /// With `parts = "generator"`: every part grows inward, towards the mesh's vertical axis
+    /// (the centre of its bounds), by this much (m; default 0, written to `sim.toml` only when
+    /// set): a 3 mm glass wall the pads can hold, its outside still the mesh's
+    /// (`docs/experiments/closeup-draws-mesh.md`). Parts on the axis do not change.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub thicken_m: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 /// Where an open object's convex parts come from.
@@ -93,6 +103,20 @@ pub enum PartSource {
     /// The generator's exact parts where the library object carries them
     /// ([`ObjectModel::parts`]: the procedural objects), VHACD for the others.
     Generator,
+}
+
+impl ShapeConfig {
+    /// Refuses a `thicken_m` that is negative, not finite or above 5 cm (a wall grown that far
+    /// fills any household object's opening), naming the field.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        if !(self.thicken_m.is_finite() && (0.0..=0.05).contains(&self.thicken_m)) {
+            return Err(WorldError::InvalidConfig {
+                field: "shapes.thicken_m".into(),
+                reason: format!("{} m is not between 0 and 0.05 m", self.thicken_m),
+            });
+        }
+        Ok(())
+    }
 }
 
 impl PartSource {
@@ -109,6 +133,7 @@ impl Default for ShapeConfig {
             concavity: 0.01,
             max_parts: 32,
             parts: PartSource::Vhacd,
+            thicken_m: 0.0,
         }
     }
 }
@@ -140,8 +165,31 @@ pub fn object_parts(object: &ObjectModel, config: &ShapeConfig) -> Vec<Vec<[f32;
         return decompose(mesh, config);
     }
     let mut parts = object.parts.clone();
+    if config.thicken_m > 0.0
+        && let Some((lo, hi)) = mesh.bounds()
+    {
+        let axis = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+        for part in &mut parts {
+            thicken_towards(part, axis, config.thicken_m);
+        }
+    }
     add_base_slab(mesh, &mut parts, |base| base);
     parts
+}
+
+/// Adds to `part` each of its points moved `depth` towards the vertical line through `axis`
+/// (stopping on it): the hull grows inward by `depth` and keeps its outside.
+fn thicken_towards(part: &mut Vec<[f32; 3]>, axis: [f32; 2], depth: f32) {
+    let n = part.len();
+    for i in 0..n {
+        let [x, y, z] = part[i];
+        let (dx, dy) = (x - axis[0], y - axis[1]);
+        let r = dx.hypot(dy);
+        if r > 1e-6 {
+            let k = (r - depth).max(0.0) / r;
+            part.push([axis[0] + dx * k, axis[1] + dy * k, z]);
+        }
+    }
 }
 
 /// Adds the base slab to `parts` (see the module docs), its points passed through `points`:
@@ -485,6 +533,58 @@ mod tests {
                 &world.config().object.clone(),
             )
             .unwrap();
+    }
+
+    /// `thicken_m` grows a glass's wall pieces inward and leaves their outside and the base
+    /// revolved whole as they were; a bad value is refused, naming the field.
+    #[test]
+    fn thickened_walls_grow_inward_only() {
+        use lgdm_pointcloud::objects::procedural_library;
+        let library = procedural_library(&["glass"], 1, 0).unwrap();
+        let glass = &library[0];
+        let exact = super::ShapeConfig {
+            parts: super::PartSource::Generator,
+            ..super::ShapeConfig::default()
+        };
+        let thick = super::ShapeConfig {
+            thicken_m: 0.004,
+            ..exact.clone()
+        };
+        let (a, b) = (
+            super::object_parts(glass, &exact),
+            super::object_parts(glass, &thick),
+        );
+        assert_eq!(a.len(), b.len());
+        let (lo, hi) = glass.mesh.bounds().unwrap();
+        let axis = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+        let radii = |part: &[[f32; 3]]| {
+            part.iter()
+                .map(|p| (p[0] - axis[0]).hypot(p[1] - axis[1]))
+                .fold((f32::INFINITY, 0.0f32), |(lo, hi), r| {
+                    (lo.min(r), hi.max(r))
+                })
+        };
+        let mut grown = 0;
+        for (pa, pb) in a.iter().zip(&b) {
+            let ((ia, oa), (ib, ob)) = (radii(pa), radii(pb));
+            assert!((oa - ob).abs() < 1e-6, "the outside stays: {oa} {ob}");
+            if ia > 0.004 {
+                assert!((ia - ib - 0.004).abs() < 1e-5, "inner {ia} -> {ib}");
+                grown += 1;
+            } else {
+                assert!(ib >= 0.0 && ib <= ia);
+            }
+        }
+        assert_eq!(grown, 32, "the 32 wall pieces");
+        for bad in [-0.001, f32::NAN, 0.2] {
+            let config = super::ShapeConfig {
+                thicken_m: bad,
+                ..exact.clone()
+            };
+            let e = config.validate().unwrap_err().to_string();
+            assert!(e.contains("shapes.thicken_m"), "{e}");
+        }
+        assert!(thick.validate().is_ok());
     }
 
     /// Closed meshes fill their hulls and are one part; open ones are decomposed.

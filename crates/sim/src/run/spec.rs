@@ -33,6 +33,7 @@ impl SimConfig {
     /// Checks every part.
     pub fn validate(&self) -> Result<(), SimError> {
         self.world.validate()?;
+        self.shapes.validate()?;
         self.robot.validate().map_err(AttemptError::from)?;
         self.check_reach()?;
         self.cameras
