@@ -521,6 +521,10 @@ fn a_runs_sim_toml_reproduces_it_and_bad_configs_name_the_field() {
             vec!["bad.toml", "noise", "edge_dropout"],
         ),
         (
+            "[shapes]\nparts = \"generator\"\nthicken_m = -0.004\n",
+            vec!["bad.toml", "shapes.thicken_m"],
+        ),
+        (
             "[robot.arm.world_from_base]\ntranslation_m = [0.0, 2.0, 0.785]\n\
              rotation_rpy_rad = [0.0, 0.0, -1.5707963267948963]\n",
             vec!["bad.toml", "robot.arm", "cannot reach the table"],
